@@ -1,0 +1,120 @@
+//! The training section (window, fps, train/pause/resume/stop/reset, progress) and the live
+//! metric curves (egui_plot; train and validation; x axis step or wall-clock time).
+
+use egui_plot::{Legend, Line, LineStyle, Plot};
+
+use super::NeuralClothApp;
+use super::metrics::{Metric, Split, XAxis, series};
+use super::training::TrainingState;
+
+/// Colour of each metric's curve, in [`Metric::ALL`] order.
+pub const METRIC_COLORS: [egui::Color32; 5] = [
+    egui::Color32::from_rgb(90, 170, 255),
+    egui::Color32::from_rgb(250, 170, 60),
+    egui::Color32::from_rgb(240, 90, 90),
+    egui::Color32::from_rgb(120, 210, 120),
+    egui::Color32::from_rgb(200, 130, 230),
+];
+
+impl NeuralClothApp {
+    /// Training settings, the control buttons and the progress indicator.
+    pub fn training_ui(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Training").default_open(true).show(ui, |ui| {
+            let state = self.state.training.state().clone();
+            let cfg = &mut self.state.train_config;
+            if ui.add(egui::Slider::new(&mut cfg.window_secs, 0.05..=4.0).text("window (s)")).changed() {
+                self.state.window_changed();
+            }
+            ui.add_enabled(!state.is_active(), egui::Slider::new(&mut self.state.train_config.fps, 5.0..=120.0).integer().text("fps"));
+            ui.horizontal_wrapped(|ui| {
+                let can_start = !state.is_active();
+                if ui.add_enabled(can_start, egui::Button::new("Train")).clicked() {
+                    self.state.start_training(self.notifier());
+                }
+                match state {
+                    TrainingState::Running => {
+                        if ui.button("Pause").clicked() {
+                            self.state.training.pause();
+                        }
+                    }
+                    TrainingState::Paused => {
+                        if ui.button("Resume").clicked() {
+                            self.state.training.resume();
+                        }
+                    }
+                    _ => {
+                        ui.add_enabled(false, egui::Button::new("Pause"));
+                    }
+                }
+                if ui.add_enabled(matches!(state, TrainingState::Running | TrainingState::Paused), egui::Button::new("Stop")).clicked() {
+                    self.state.training.stop();
+                }
+                if ui.button("Reset").on_hover_text("Stop and forget the run (curves, preview weights)").clicked() {
+                    self.state.training.reset();
+                    self.state.preview.reset_scene();
+                }
+            });
+            let p = self.state.training.progress;
+            ui.label(format!("State: {}", state.label()));
+            let fraction = match p.max_steps {
+                Some(m) if m > 0 => (p.step as f32 / m as f32).clamp(0.0, 1.0),
+                _ => 0.0,
+            };
+            let text = format!("step {} · {:.1} steps/s · {:.0} s", p.step, p.steps_per_sec, p.elapsed_secs);
+            ui.add(egui::ProgressBar::new(fraction).text(text).animate(state == TrainingState::Running));
+            if let TrainingState::Finished(Err(e)) = &state {
+                ui.colored_label(egui::Color32::from_rgb(255, 100, 90), e);
+            }
+            ui.weak(format!("preview: {}", self.state.preview.describe()));
+        });
+    }
+
+    /// Metric curves of the current run.
+    pub fn plot_ui(&mut self, ui: &mut egui::Ui) {
+        let curves = &mut self.state.curves;
+        ui.horizontal_wrapped(|ui| {
+            ui.strong("Metrics");
+            for (k, metric) in Metric::ALL.iter().enumerate() {
+                if let Some(shown) = curves.shown.get_mut(k) {
+                    ui.checkbox(shown, metric.label());
+                }
+            }
+            ui.checkbox(&mut curves.validation, "validation");
+            ui.separator();
+            ui.selectable_value(&mut curves.x_axis, XAxis::Step, "step");
+            ui.selectable_value(&mut curves.x_axis, XAxis::WallClock, "time (s)");
+        });
+        let history = &self.state.training.history;
+        if history.train.is_empty() && history.validation.is_empty() {
+            ui.centered_and_justified(|ui| {
+                ui.weak("No metrics yet: press Train.");
+            });
+            return;
+        }
+        let x_axis = curves.x_axis;
+        let x_label = match x_axis {
+            XAxis::Step => "step",
+            XAxis::WallClock => "time (s)",
+        };
+        let mut lines = Vec::new();
+        for (k, metric) in Metric::ALL.iter().enumerate() {
+            if !curves.is_shown(*metric) {
+                continue;
+            }
+            let color = METRIC_COLORS.get(k).copied().unwrap_or(egui::Color32::GRAY);
+            lines.push(Line::new(metric.label(), series(history, Split::Train, *metric, x_axis)).color(color).width(1.5));
+            if curves.validation {
+                let points = series(history, Split::Validation, *metric, x_axis);
+                if !points.is_empty() {
+                    let name = format!("{} (validation)", metric.label());
+                    lines.push(Line::new(name, points).color(color).style(LineStyle::dashed_dense()).width(1.5));
+                }
+            }
+        }
+        Plot::new("metric curves").legend(Legend::default()).x_axis_label(x_label).show(ui, |plot| {
+            for line in lines {
+                plot.line(line);
+            }
+        });
+    }
+}

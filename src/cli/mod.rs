@@ -1,0 +1,42 @@
+//! Argument parsing and dispatch of the subcommands. Each subcommand lives in its own file
+//! and calls into the library; this layer only parses, reports progress and prints.
+
+mod inspect;
+mod train;
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+/// Neural cloth simulation: train a garment model on a moving avatar without simulated data.
+#[derive(Parser, Debug)]
+#[command(name = "neural-cloth", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do; without a subcommand the app opens on the default scene.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+    /// Project file (TOML) to open in the app.
+    #[arg(long, global = false)]
+    pub project: Option<PathBuf>,
+}
+
+/// The subcommands.
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Print what a glTF/GLB, OBJ or BVH file holds (joints, vertices, animations, units).
+    Inspect {
+        /// The file to read.
+        file: PathBuf,
+    },
+    /// Train a model on a scene headless (default: the built-in scene).
+    Train(train::TrainArgs),
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        None => neural_cloth::app::run_app(neural_cloth::app::AppOptions { project: cli.project, ..Default::default() }),
+        Some(Command::Inspect { file }) => inspect::run(&file),
+        Some(Command::Train(args)) => train::run(args),
+    }
+}

@@ -1,0 +1,212 @@
+//! `neural-cloth train`: trains on a scene headless, with a progress bar and a final JSON
+//! summary; `neural-cloth eval RUN`: the §4.2 metrics of a trained run on its test split.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use neural_cloth::io::scene_loader::{load_scene, load_scene_file};
+use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
+use neural_cloth::scene::config::{AvatarSource, GarmentSource, MotionSource, SceneConfig, Split};
+use neural_cloth::train::{BackendKind, RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer};
+
+/// Arguments of `train`.
+#[derive(clap::Args, Debug)]
+pub struct TrainArgs {
+    /// Scene file (TOML); default: the built-in scene.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Garment file (OBJ/glTF) replacing the scene's garment; needs --avatar.
+    #[arg(long, requires = "avatar")]
+    pub garment: Option<PathBuf>,
+    /// Skinned avatar (glTF/GLB) replacing the scene's avatar; needs --garment.
+    #[arg(long, requires = "garment")]
+    pub avatar: Option<PathBuf>,
+    /// Folder of BVH (or glTF) motions used for training (every 10th file validates).
+    #[arg(long)]
+    pub motions: Option<PathBuf>,
+    /// Train for this many minutes.
+    #[arg(long)]
+    pub minutes: Option<f64>,
+    /// Train for this many steps.
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// Compute backend.
+    #[arg(long, value_enum, default_value = "cpu")]
+    pub backend: Backend,
+    /// Output folder of the run (default: a new folder under ./runs).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Continue the run in this folder from its newest checkpoint.
+    #[arg(long, conflicts_with = "out")]
+    pub resume: Option<PathBuf>,
+    /// Windows per batch.
+    #[arg(long)]
+    pub batch: Option<usize>,
+    /// Temporal window in seconds.
+    #[arg(long)]
+    pub window: Option<f32>,
+    /// Training frame rate.
+    #[arg(long)]
+    pub fps: Option<f32>,
+    /// Random seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+}
+
+/// The backend choice on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum Backend {
+    /// burn's flex CPU backend.
+    Cpu,
+    /// burn-wgpu (a GPU).
+    Wgpu,
+}
+
+/// The scene and its (absolute-path) description from the arguments.
+pub fn scene_from_args(scene: Option<&Path>, avatar: Option<&Path>, garment: Option<&Path>, motions: Option<&Path>) -> anyhow::Result<(neural_cloth::scene::Scene, SceneConfig)> {
+    let (mut config, dir) = match scene {
+        Some(path) => {
+            let config = SceneConfig::load(path).with_context(|| format!("reading {}", path.display()))?;
+            (config, path.parent().map(Path::to_path_buf).unwrap_or_default())
+        }
+        None => (SceneConfig::default_scene(), std::env::current_dir()?),
+    };
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    if let (Some(a), Some(g)) = (avatar, garment) {
+        config.avatar = AvatarSource::File { path: abs(a), units: None };
+        config.garment = GarmentSource::File { path: abs(g), units: None, smoothing_passes: None };
+    }
+    if let Some(dir) = motions {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+            .with_context(|| format!("listing {}", dir.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh") || e.eq_ignore_ascii_case("glb") || e.eq_ignore_ascii_case("gltf")))
+            .collect();
+        files.sort();
+        anyhow::ensure!(!files.is_empty(), "no BVH or glTF motions in {}", dir.display());
+        config.motions = files
+            .iter()
+            .enumerate()
+            .map(|(k, p)| MotionSource::File {
+                path: abs(p),
+                units: None,
+                split: if files.len() > 1 && k % 10 == 9 { Split::Validation } else { Split::Train },
+                name: None,
+            })
+            .collect();
+    }
+    // Paths stored in the run must not depend on the working directory.
+    let resolve = |p: &Path| abs(&SceneConfig::resolve_path(&dir, p));
+    if let AvatarSource::File { path, .. } = &mut config.avatar {
+        *path = resolve(path);
+    }
+    if let GarmentSource::File { path, .. } = &mut config.garment {
+        *path = resolve(path);
+    }
+    for m in &mut config.motions {
+        if let MotionSource::File { path, .. } = m {
+            *path = resolve(path);
+        }
+    }
+    let loaded = match scene {
+        Some(p) if avatar.is_none() && motions.is_none() => load_scene_file(p)?,
+        _ => load_scene(&config, &dir, scene.unwrap_or(Path::new("command line")))?,
+    };
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok((loaded.scene, config))
+}
+
+/// Runs `train`.
+pub fn run(args: TrainArgs) -> anyhow::Result<()> {
+    let (scene, scene_config) = scene_from_args(args.scene.as_deref(), args.avatar.as_deref(), args.garment.as_deref(), args.motions.as_deref())?;
+    let mut train = TrainConfig { fps: scene.training_fps, ..Default::default() };
+    train.backend = match args.backend {
+        Backend::Cpu => BackendKind::Cpu,
+        Backend::Wgpu => BackendKind::Wgpu,
+    };
+    if let Some(b) = args.batch {
+        train.batch_size = b;
+    }
+    if let Some(w) = args.window {
+        train.window_secs = w;
+    }
+    if let Some(f) = args.fps {
+        train.fps = f;
+    }
+    if let Some(s) = args.seed {
+        train.seed = s;
+    }
+    train.max_steps = args.steps;
+    train.max_minutes = args.minutes;
+    if train.max_steps.is_none() && train.max_minutes.is_none() {
+        train.max_minutes = Some(10.0);
+        eprintln!("no --minutes or --steps given: training for 10 minutes");
+    }
+    let location = match (args.resume, args.out) {
+        (Some(dir), _) => RunLocation::Resume(dir),
+        (None, Some(dir)) => RunLocation::At(dir),
+        (None, None) => RunLocation::NewUnder(PathBuf::from("runs")),
+    };
+    let setup = TrainSetup {
+        scene,
+        scene_config,
+        train: train.clone(),
+        model: ClothNetConfig::default(),
+        descriptors: DescriptorConfig::default(),
+        fabric: None,
+        location,
+    };
+    let handle = Trainer::spawn(setup, None)?;
+    let bar = match train.max_steps {
+        Some(n) => ProgressBar::new(n),
+        None => ProgressBar::new((train.max_minutes.unwrap_or(1.0) * 60.0).ceil() as u64),
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let by_steps = train.max_steps.is_some();
+    let mut steps_per_sec = 0.0;
+    let mut last = (0u64, 0.0f64);
+    loop {
+        let Some(event) = handle.recv_timeout(Duration::from_millis(200)) else {
+            bar.tick();
+            continue;
+        };
+        match event {
+            TrainEvent::Started { run_dir, step } => bar.println(format!("run folder: {} (from step {step})", run_dir.display())),
+            TrainEvent::Step(r) => {
+                if r.wall_secs > last.1 + 1.0 {
+                    steps_per_sec = (r.step - last.0) as f64 / (r.wall_secs - last.1);
+                    last = (r.step, r.wall_secs);
+                }
+                bar.set_position(if by_steps { r.step } else { r.wall_secs as u64 });
+                bar.set_message(format!(
+                    "step {} | {:.1} steps/s | loss {:.4} strain {:.4} bend {:.3} coll {:.1}% grav {:.4} inert {:.5}",
+                    r.step, steps_per_sec, r.loss, r.strain, r.bending, r.collision_pct, r.gravity, r.inertia
+                ));
+            }
+            TrainEvent::Validation(r) => bar.println(format!(
+                "validation @ {}: loss {:.4} strain {:.4} bending {:.3} collision {:.2}% gravity {:.4} inertia {:.5}",
+                r.step, r.loss, r.strain, r.bending, r.collision_pct, r.gravity, r.inertia
+            )),
+            TrainEvent::RolledBack { diverged_at, restored_step, learning_rate } => {
+                bar.println(format!("diverged at step {diverged_at}: rolled back to step {restored_step}, learning rate now {learning_rate:e}"))
+            }
+            TrainEvent::Checkpoint { .. } | TrainEvent::Snapshot { .. } | TrainEvent::Paused | TrainEvent::Resumed | TrainEvent::Applied(_) => {}
+            TrainEvent::Finished(result) => {
+                bar.finish_and_clear();
+                let summary = result.map_err(|e| anyhow::anyhow!(e))?;
+                println!("{}", serde_json::to_string_pretty(&summary)?);
+                break;
+            }
+        }
+    }
+    handle.join();
+    Ok(())
+}

@@ -1,0 +1,161 @@
+//! A human-readable report on any supported file (glb, gltf, obj, bvh): joints as a short
+//! tree, vertices and faces, animations with frame counts and durations, units, warnings.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::retarget::canonical_joint_name;
+use super::{ImportOptions, IoError, LoadedMesh, Units};
+use crate::geometry::TriMesh;
+
+/// Most lines of the joint tree shown before it is cut short.
+const MAX_TREE_LINES: usize = 40;
+
+/// Loads `path` by its extension and describes what it holds.
+pub fn inspect(path: &Path) -> Result<String, IoError> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let options = ImportOptions::default();
+    let mut out = String::new();
+    let _ = writeln!(out, "file: {}", path.display());
+    match ext.as_str() {
+        "glb" | "gltf" => match super::load_avatar(path, &options) {
+            Ok(loaded) => {
+                let a = &loaded.avatar;
+                let _ = writeln!(out, "kind: skinned glTF avatar");
+                units_line(&mut out, options.units, loaded.units);
+                let _ = writeln!(out, "height: {:.3} m", a.height_m());
+                joint_tree(&mut out, &a.skeleton.names, &a.skeleton.parents);
+                mesh_lines(&mut out, "body", &a.bind_mesh);
+                let _ = writeln!(out, "animations: {}", a.motions.len());
+                for m in &a.motions {
+                    let _ = writeln!(out, "  '{}': {:.3} s, {} frames at {} fps", m.name, m.duration_secs(), m.frame_count(), m.fps);
+                }
+                warnings(&mut out, &loaded.warnings);
+            }
+            Err(IoError::NoSkin { .. }) => {
+                let loaded = super::load_gltf_mesh(path, &options)?;
+                let _ = writeln!(out, "kind: glTF mesh without a skin (usable as a garment)");
+                static_mesh(&mut out, &options, &loaded);
+            }
+            Err(e) => return Err(e),
+        },
+        "obj" => {
+            let loaded = super::load_obj(path, &options)?;
+            let _ = writeln!(out, "kind: OBJ mesh");
+            static_mesh(&mut out, &options, &loaded);
+        }
+        "bvh" => {
+            let bvh = super::load_bvh(path)?;
+            let (units, scale) = bvh.resolve_units(Units::Auto);
+            let _ = writeln!(out, "kind: BVH motion capture");
+            units_line(&mut out, Units::Auto, units);
+            let names: Vec<String> = bvh.joints.iter().map(|j| j.name.clone()).collect();
+            let parents: Vec<Option<usize>> = bvh.joints.iter().map(|j| j.parent).collect();
+            joint_tree(&mut out, &names, &parents);
+            let _ = writeln!(out, "channels: {} per frame", bvh.channel_count);
+            let _ = writeln!(
+                out,
+                "motion: {} frames, frame time {} s ({:.2} fps), {:.3} s",
+                bvh.frame_count(),
+                bvh.frame_time_secs,
+                bvh.fps(),
+                bvh.duration_secs()
+            );
+            let rest = bvh.rest_positions();
+            let low = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+            if let Some(root) = rest.first() {
+                let _ = writeln!(out, "hip height (rest, above the lowest joint): {:.3} m", (root.y - low) * scale);
+            }
+            let mut canonical: Vec<&str> = names.iter().filter_map(|n| canonical_joint_name(n)).collect();
+            canonical.sort_unstable();
+            canonical.dedup();
+            let _ = writeln!(out, "retargetable joints (Mixamo names): {} ({})", canonical.len(), canonical.join(", "));
+            warnings(&mut out, &bvh.warnings);
+        }
+        _ => return Err(IoError::UnsupportedFormat { extension: ext, path: path.to_path_buf() }),
+    }
+    Ok(out)
+}
+
+fn units_line(out: &mut String, asked: Units, used: Units) {
+    let how = if asked == Units::Auto { "detected" } else { "given" };
+    let _ = writeln!(out, "units: {} ({how}; {} m per unit)", used.label(), used.metres_per_unit().unwrap_or(1.0));
+}
+
+fn static_mesh(out: &mut String, options: &ImportOptions, loaded: &LoadedMesh) {
+    units_line(out, options.units, loaded.units);
+    mesh_lines(out, "mesh", &loaded.mesh);
+    if let Some((lo, hi)) = loaded.mesh.bounds() {
+        let size = hi - lo;
+        let _ = writeln!(out, "size: {:.3} x {:.3} x {:.3} m", size.x, size.y, size.z);
+    }
+    warnings(out, &loaded.warnings);
+}
+
+fn mesh_lines(out: &mut String, what: &str, mesh: &TriMesh) {
+    let _ = writeln!(
+        out,
+        "{what}: {} vertices, {} triangles, UVs {}",
+        mesh.vertex_count(),
+        mesh.faces.len(),
+        if mesh.uvs.is_some() { "yes" } else { "no" }
+    );
+}
+
+fn warnings(out: &mut String, warnings: &[String]) {
+    if warnings.is_empty() {
+        let _ = writeln!(out, "warnings: none");
+    } else {
+        let _ = writeln!(out, "warnings: {}", warnings.len());
+        for w in warnings {
+            let _ = writeln!(out, "  - {w}");
+        }
+    }
+}
+
+/// Writes `joints: N` and an indented tree (parents precede children), cut after
+/// [`MAX_TREE_LINES`] lines.
+fn joint_tree(out: &mut String, names: &[String], parents: &[Option<usize>]) {
+    let _ = writeln!(out, "joints: {}", names.len());
+    let mut children = vec![Vec::new(); names.len()];
+    let mut roots = Vec::new();
+    for (j, p) in parents.iter().enumerate() {
+        match p.filter(|&p| p < names.len()) {
+            Some(p) => children[p].push(j),
+            None => roots.push(j),
+        }
+    }
+    let mut stack: Vec<(usize, usize)> = roots.iter().rev().map(|&r| (r, 1)).collect();
+    let mut shown = 0;
+    while let Some((j, depth)) = stack.pop() {
+        if shown == MAX_TREE_LINES {
+            let _ = writeln!(out, "  ... (+{} more joints)", names.len() - shown);
+            break;
+        }
+        let _ = writeln!(out, "{}{}", "  ".repeat(depth.min(20)), names[j]);
+        shown += 1;
+        stack.extend(children[j].iter().rev().map(|&c| (c, depth + 1)));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tree_is_indented_and_cut() {
+        let names: Vec<String> = (0..50).map(|i| format!("j{i}")).collect();
+        let parents: Vec<Option<usize>> = (0..50).map(|i| if i == 0 { None } else { Some(0) }).collect();
+        let mut out = String::new();
+        joint_tree(&mut out, &names, &parents);
+        assert!(out.starts_with("joints: 50\n  j0\n    j1\n"));
+        assert!(out.contains("(+10 more joints)"));
+    }
+
+    #[test]
+    fn unknown_extension_is_an_error() {
+        let err = inspect(Path::new("model.fbx")).unwrap_err();
+        assert!(matches!(err, IoError::UnsupportedFormat { .. }));
+        assert!(err.to_string().ends_with("model.fbx"));
+    }
+}

@@ -1,0 +1,14 @@
+//! neural-cloth: unsupervised neural cloth simulation (Bertiche, Madadi and Escalera, "Neural
+//! Cloth Simulation", ACM TOG 2022) as a desktop authoring tool.
+//!
+//! Layers, each depending only on those above it in this list: [`geometry`], [`scene`],
+//! [`io`], `physics`, `model`, `train`, `render`, `app`.
+
+pub mod geometry;
+pub mod scene;
+pub mod io;
+pub mod physics;
+pub mod model;
+pub mod train;
+pub mod render;
+pub mod app;

@@ -1,0 +1,18 @@
+//! The `neural-cloth` command line: with no subcommand it opens the authoring app; the
+//! subcommands run the same jobs headless (inspect, train, eval, simulate, bake, bench,
+//! report, screenshot).
+
+mod cli;
+
+use clap::Parser;
+
+fn main() -> std::process::ExitCode {
+    let args = cli::Cli::parse();
+    match cli::run(args) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

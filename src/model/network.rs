@@ -1,0 +1,399 @@
+//! The recurrent encoder-decoder of paper §3.3 as a burn module.
+//!
+//! * Static encoder: flatten `[J, 9]` -> FC 64, 128, 256, latent (ReLU, bias).
+//! * Dynamic encoder, no bias anywhere: per-joint FC 12 -> 32 -> 32 (weights shared by all
+//!   joints: a `Linear` on `[B, T, J, 12]` acts per joint), flatten `[J, 32]` -> FC 512 ->
+//!   FC 512 -> GRU(latent). ReLU follows every FC layer, as in the authors' official code
+//!   (`ncs/model/ncs.py`); with no bias, zero descriptors and a zero state give `z_D = 0`
+//!   exactly.
+//! * `z = z_S + w z_D`, `w` in `[0, 2]` (1 = trained behaviour, paper §4.6).
+//! * Decoder: three FC 512 (ReLU, bias) then a bias-free linear basis `latent -> V * 3`
+//!   giving rest-space offsets `[B, T, V, 3]`.
+//!
+//! Variants (ablation and scene effects): [`EncoderKind::Entangled`] feeds one recurrent
+//! encoder (with biases) the concatenated 21-d descriptors; [`EncoderKind::StaticOnly`] has
+//! no dynamic branch at all (the static, PBNS-like formulation).
+//!
+//! Initialisation follows the official code: FC weights `N(0, 0.05²)`, FC biases zero, the
+//! basis glorot-normal with Keras' fan convention for a `[latent, V, 3]` kernel, the GRU
+//! burn's default (Xavier normal).
+
+use burn::module::Module;
+use burn::nn::{Gru, GruConfig, Initializer, Linear};
+use burn::tensor::activation::relu;
+use burn::tensor::{Device, Tensor};
+use serde::{Deserialize, Serialize};
+
+use super::ModelError;
+use super::descriptors::{DYNAMIC_DIM, STATIC_DIM};
+
+/// How the body motion is encoded.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EncoderKind {
+    /// Separate static and (bias-free, recurrent) dynamic encoders, `z = z_S + w z_D` (paper).
+    #[default]
+    Disentangled,
+    /// One recurrent encoder with biases fed static and dynamic descriptors together
+    /// (ablation, paper Table 2); `w` has no effect.
+    Entangled,
+    /// Static encoder only, no dynamic branch (PBNS-like; scenes without dynamics).
+    StaticOnly,
+}
+
+/// Architecture of [`ClothNet`]; the input joint count and vertex count come from the scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ClothNetConfig {
+    /// Encoder layout; default `disentangled`.
+    pub encoder: EncoderKind,
+    /// Hidden widths of the static encoder before its final `latent` layer; each 1..=8192,
+    /// default `[64, 128, 256]`.
+    pub static_hidden: Vec<usize>,
+    /// Widths of the per-joint layers of the dynamic (or entangled) encoder; at least one,
+    /// each 1..=8192, default `[32, 32]`.
+    pub joint_hidden: Vec<usize>,
+    /// Widths of the FC layers between the flattened joint features and the GRU; each
+    /// 1..=8192, default `[512, 512]`.
+    pub dynamic_hidden: Vec<usize>,
+    /// Latent size (static encoder output, GRU state, decoder input); 1..=8192, default 512.
+    pub latent: usize,
+    /// Hidden widths of the decoder before the basis; each 1..=8192, default `[512, 512, 512]`.
+    pub decoder_hidden: Vec<usize>,
+    /// Standard deviation of the normal initialisation of FC weights; > 0, default 0.05
+    /// (Keras `random_normal`, official code). Biases start at zero.
+    pub init_std: f64,
+    /// Gain of the glorot-normal basis initialisation (std = gain * sqrt(2 / (latent * (V + 3))),
+    /// Keras fans of a `[latent, V, 3]` kernel); >= 0, default 1.
+    pub basis_init_gain: f64,
+}
+
+impl Default for ClothNetConfig {
+    fn default() -> Self {
+        Self {
+            encoder: EncoderKind::Disentangled,
+            static_hidden: vec![64, 128, 256],
+            joint_hidden: vec![32, 32],
+            dynamic_hidden: vec![512, 512],
+            latent: 512,
+            decoder_hidden: vec![512, 512, 512],
+            init_std: 0.05,
+            basis_init_gain: 1.0,
+        }
+    }
+}
+
+/// Largest layer width accepted by [`ClothNetConfig::validate`].
+pub const MAX_WIDTH: usize = 8192;
+
+impl ClothNetConfig {
+    /// Checks widths and initialisation scales.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        let widths = self
+            .static_hidden
+            .iter()
+            .chain(&self.joint_hidden)
+            .chain(&self.dynamic_hidden)
+            .chain(&self.decoder_hidden)
+            .chain(std::iter::once(&self.latent));
+        if let Some(w) = widths.into_iter().find(|w| !(1..=MAX_WIDTH).contains(*w)) {
+            return Err(ModelError::InvalidConfig(format!("layer width {w} outside 1..={MAX_WIDTH}")));
+        }
+        if self.encoder != EncoderKind::StaticOnly && self.joint_hidden.is_empty() {
+            return Err(ModelError::InvalidConfig("joint_hidden needs at least one layer".into()));
+        }
+        if !(self.init_std.is_finite() && self.init_std > 0.0) {
+            return Err(ModelError::InvalidConfig(format!("init_std {} is not positive", self.init_std)));
+        }
+        if !(self.basis_init_gain.is_finite() && self.basis_init_gain >= 0.0) {
+            return Err(ModelError::InvalidConfig(format!("basis_init_gain {} is negative", self.basis_init_gain)));
+        }
+        Ok(())
+    }
+
+    /// Builds the network for `input_joints` joints and a garment of `vertices` vertices.
+    pub fn init(&self, input_joints: usize, vertices: usize, device: &Device) -> Result<ClothNet, ModelError> {
+        self.validate()?;
+        if input_joints == 0 || vertices == 0 {
+            return Err(ModelError::InvalidConfig(format!(
+                "network needs at least one input joint and one vertex (got {input_joints} joints, {vertices} vertices)"
+            )));
+        }
+        let fc = Initializer::Normal { mean: 0.0, std: self.init_std };
+        let mlp = |d_in: usize, widths: &[usize], bias: bool| -> Mlp {
+            let mut layers = Vec::with_capacity(widths.len());
+            let mut d = d_in;
+            for &w in widths {
+                layers.push(linear(d, w, bias, &fc, device));
+                d = w;
+            }
+            Mlp { layers }
+        };
+        let recurrent = |joint_in: usize, bias: bool| -> RecurrentEncoder {
+            let joint_mlp = mlp(joint_in, &self.joint_hidden, bias);
+            let joint_out = self.joint_hidden.last().copied().unwrap_or(joint_in);
+            let mlp = mlp(input_joints * joint_out, &self.dynamic_hidden, bias);
+            let gru_in = self.dynamic_hidden.last().copied().unwrap_or(input_joints * joint_out);
+            RecurrentEncoder { joint_mlp, mlp, gru: GruConfig::new(gru_in, self.latent, bias).init(device) }
+        };
+        let mut static_widths = self.static_hidden.clone();
+        static_widths.push(self.latent);
+        let (static_encoder, dynamic_encoder, entangled_encoder) = match self.encoder {
+            EncoderKind::Disentangled => (
+                Some(mlp(input_joints * STATIC_DIM, &static_widths, true)),
+                Some(recurrent(DYNAMIC_DIM, false)),
+                None,
+            ),
+            EncoderKind::StaticOnly => (Some(mlp(input_joints * STATIC_DIM, &static_widths, true)), None, None),
+            EncoderKind::Entangled => (None, None, Some(recurrent(STATIC_DIM + DYNAMIC_DIM, true))),
+        };
+        let decoder_mlp = mlp(self.latent, &self.decoder_hidden, true);
+        let basis_in = self.decoder_hidden.last().copied().unwrap_or(self.latent);
+        // Keras glorot_normal on a [basis_in, V, 3] kernel: fan_in = basis_in * V, fan_out = basis_in * 3.
+        let basis_std = self.basis_init_gain * (2.0 / (basis_in as f64 * (vertices as f64 + 3.0))).sqrt();
+        let basis = Linear {
+            weight: Initializer::Normal { mean: 0.0, std: basis_std.max(f64::MIN_POSITIVE) }.init_with(
+                [basis_in, vertices * 3],
+                Some(basis_in),
+                Some(vertices * 3),
+                device,
+            ),
+            bias: None,
+        };
+        Ok(ClothNet {
+            static_encoder,
+            dynamic_encoder,
+            entangled_encoder,
+            decoder: Decoder { mlp: decoder_mlp, basis },
+            input_joints,
+            vertices,
+            latent: self.latent,
+        })
+    }
+}
+
+fn linear(d_in: usize, d_out: usize, bias: bool, init: &Initializer, device: &Device) -> Linear {
+    Linear {
+        weight: init.init_with([d_in, d_out], Some(d_in), Some(d_out), device),
+        bias: bias.then(|| Initializer::Zeros.init_with([d_out], Some(d_in), Some(d_out), device)),
+    }
+}
+
+/// A stack of linear layers, each followed by ReLU.
+#[derive(Module, Debug)]
+pub struct Mlp {
+    /// The layers, input first.
+    pub layers: Vec<Linear>,
+}
+
+impl Mlp {
+    /// Applies every layer and ReLU to the last axis of `x`.
+    pub fn forward<const D: usize>(&self, x: Tensor<D>) -> Tensor<D> {
+        self.layers.iter().fold(x, |x, l| relu(l.forward(x)))
+    }
+}
+
+/// Per-joint layers, flatten, FC layers and a GRU (the dynamic or the entangled encoder).
+#[derive(Module, Debug)]
+pub struct RecurrentEncoder {
+    /// Layers applied to each joint's descriptor with shared weights.
+    pub joint_mlp: Mlp,
+    /// Layers applied to the flattened joint features.
+    pub mlp: Mlp,
+    /// The recurrent unit (burn's GRU, `reset_after = true`).
+    pub gru: Gru,
+}
+
+impl RecurrentEncoder {
+    /// `[B, T, J, C]` descriptors -> `[B, T, latent]` codes, from `state` (`[B, latent]`) or zero.
+    pub fn forward(&self, desc: Tensor<4>, state: Option<Tensor<2>>) -> Tensor<3> {
+        let [b, t, _, _] = desc.dims();
+        let x = self.joint_mlp.forward(desc);
+        let [_, _, j, c] = x.dims();
+        let x = self.mlp.forward(x.reshape([b, t, j * c]));
+        self.gru.forward(x, state)
+    }
+}
+
+/// Decoder MLP and the linear basis of rest-space offsets.
+#[derive(Module, Debug)]
+pub struct Decoder {
+    /// FC layers with bias and ReLU.
+    pub mlp: Mlp,
+    /// Bias-free basis `[latent, V * 3]`.
+    pub basis: Linear,
+}
+
+/// The cloth network: descriptors -> latent code -> rest-space garment offsets.
+#[derive(Module, Debug)]
+pub struct ClothNet {
+    /// Static encoder (absent in the entangled variant).
+    pub static_encoder: Option<Mlp>,
+    /// Bias-free dynamic encoder (disentangled variant only).
+    pub dynamic_encoder: Option<RecurrentEncoder>,
+    /// Single encoder of the entangled variant.
+    pub entangled_encoder: Option<RecurrentEncoder>,
+    /// Decoder and basis.
+    pub decoder: Decoder,
+    /// Number of input joints `J`.
+    pub input_joints: usize,
+    /// Number of garment vertices `V`.
+    pub vertices: usize,
+    /// Latent size.
+    pub latent: usize,
+}
+
+impl ClothNet {
+    /// Which variant this network is.
+    pub fn kind(&self) -> EncoderKind {
+        match (&self.entangled_encoder, &self.dynamic_encoder) {
+            (Some(_), _) => EncoderKind::Entangled,
+            (None, Some(_)) => EncoderKind::Disentangled,
+            (None, None) => EncoderKind::StaticOnly,
+        }
+    }
+
+    /// True when the network has a (separate, bias-free) dynamic branch.
+    pub fn has_dynamic_branch(&self) -> bool {
+        self.dynamic_encoder.is_some()
+    }
+
+    /// Static code `z_S` `[B, T, latent]` of static descriptors `[B, T, J, 9]`; `None` for the
+    /// entangled variant.
+    pub fn encode_static(&self, static_desc: Tensor<4>) -> Option<Tensor<3>> {
+        let enc = self.static_encoder.as_ref()?;
+        let [b, t, j, c] = static_desc.dims();
+        Some(enc.forward(static_desc.reshape([b, t, j * c])))
+    }
+
+    /// Dynamic code `z_D` `[B, T, latent]` of dynamic descriptors `[B, T, J, 12]` with the GRU
+    /// started from `state` (`[B, latent]`, zero when `None`); `None` without a dynamic branch.
+    pub fn encode_dynamic(&self, dynamic_desc: Tensor<4>, state: Option<Tensor<2>>) -> Option<Tensor<3>> {
+        Some(self.dynamic_encoder.as_ref()?.forward(dynamic_desc, state))
+    }
+
+    /// Latent code `z` `[B, T, latent]` of all `T` frames.
+    ///
+    /// Disentangled: `z_S + w z_D` (`z_D` skipped when `dynamic_desc` is `None` or `w == 0`);
+    /// static-only: `z_S`; entangled: the single encoder's code (zero dynamics when `None`).
+    pub fn latent_code(&self, static_desc: Tensor<4>, dynamic_desc: Option<Tensor<4>>, w: f32) -> Tensor<3> {
+        if let Some(enc) = &self.entangled_encoder {
+            let dynamic = dynamic_desc.unwrap_or_else(|| zeros_like_dynamic(&static_desc));
+            return enc.forward(Tensor::cat(vec![static_desc, dynamic], 3), None);
+        }
+        let [b, t, _, _] = static_desc.dims();
+        let device = static_desc.device();
+        let z_s = self.encode_static(static_desc).unwrap_or_else(|| Tensor::zeros([b, t, self.latent], &device));
+        match (dynamic_desc, &self.dynamic_encoder) {
+            (Some(d), Some(enc)) if w != 0.0 => z_s + enc.forward(d, None).mul_scalar(w),
+            _ => z_s,
+        }
+    }
+
+    /// Rest-space offsets `[B, T, V, 3]` of latent codes `[B, T, latent]`.
+    pub fn decode(&self, z: Tensor<3>) -> Tensor<4> {
+        let [b, t, _] = z.dims();
+        let h = self.decoder.mlp.forward(z);
+        self.decoder.basis.forward(h).reshape([b, t, self.vertices, 3])
+    }
+
+    /// Offsets `[B, T, V, 3]` for every frame of the window: static descriptors `[B, T, J, 9]`,
+    /// optional dynamic descriptors `[B, T, J, 12]`, dynamic weight `w` (1 = trained).
+    pub fn forward(&self, static_desc: Tensor<4>, dynamic_desc: Option<Tensor<4>>, w: f32) -> Tensor<4> {
+        self.decode(self.latent_code(static_desc, dynamic_desc, w))
+    }
+
+    /// Codes of the last `last` frames (1..=T) for motion augmentation: `(z_S, Some(z_D))` for
+    /// the disentangled variant (shuffle / detach `z_D`, then [`ClothNet::decode`]
+    /// `z_S + w z_D`), `(z_S, None)` when static-only, `(z, None)` when entangled. Each `[B, last, latent]`.
+    pub fn encode_last(&self, static_desc: Tensor<4>, dynamic_desc: Option<Tensor<4>>, last: usize) -> (Tensor<3>, Option<Tensor<3>>) {
+        let t = static_desc.dims()[1];
+        let last = last.clamp(1, t.max(1));
+        let start = t - last;
+        if self.entangled_encoder.is_some() {
+            return (self.latent_code(static_desc, dynamic_desc, 1.0).narrow(1, start, last), None);
+        }
+        let z_s = self.latent_code(static_desc.narrow(1, start, last), None, 0.0);
+        let z_d = match (dynamic_desc, &self.dynamic_encoder) {
+            (Some(d), Some(enc)) => Some(enc.forward(d, None).narrow(1, start, last)),
+            _ => None,
+        };
+        (z_s, z_d)
+    }
+
+    /// Offsets `[B, last, V, 3]` of the last `last` frames only (1..=T): the GRU runs over the
+    /// whole window, the static encoder and the decoder over the last frames (training takes 3).
+    pub fn forward_last(&self, static_desc: Tensor<4>, dynamic_desc: Option<Tensor<4>>, w: f32, last: usize) -> Tensor<4> {
+        let t = static_desc.dims()[1];
+        let last = last.clamp(1, t.max(1));
+        let start = t - last;
+        if self.entangled_encoder.is_some() {
+            let z = self.latent_code(static_desc, dynamic_desc, w);
+            return self.decode(z.narrow(1, start, last));
+        }
+        let s_last = static_desc.narrow(1, start, last);
+        let z = match (dynamic_desc, &self.dynamic_encoder) {
+            (Some(d), Some(enc)) if w != 0.0 => {
+                let z_d = enc.forward(d, None).narrow(1, start, last);
+                self.latent_code(s_last, None, 0.0) + z_d.mul_scalar(w)
+            }
+            _ => self.latent_code(s_last, None, 0.0),
+        };
+        self.decode(z)
+    }
+}
+
+fn zeros_like_dynamic(static_desc: &Tensor<4>) -> Tensor<4> {
+    let [b, t, j, _] = static_desc.dims();
+    Tensor::zeros([b, t, j, DYNAMIC_DIM], &static_desc.device())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn small() -> ClothNetConfig {
+        ClothNetConfig {
+            static_hidden: vec![8],
+            joint_hidden: vec![4, 4],
+            dynamic_hidden: vec![16],
+            latent: 12,
+            decoder_hidden: vec![10],
+            init_std: 0.3,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn config_validation_and_toml_round_trip() {
+        assert!(ClothNetConfig::default().validate().is_ok());
+        assert!(ClothNetConfig { latent: 0, ..Default::default() }.validate().is_err());
+        assert!(ClothNetConfig { init_std: f64::NAN, ..Default::default() }.validate().is_err());
+        let c = ClothNetConfig { encoder: EncoderKind::Entangled, ..small() };
+        let back: ClothNetConfig = toml::from_str(&toml::to_string(&c).unwrap()).unwrap();
+        assert_eq!(back, c);
+        assert!(c.init(0, 5, &Device::flex()).is_err());
+    }
+
+    #[test]
+    fn dynamic_branch_has_no_bias_and_shapes_hold() {
+        let device = Device::flex();
+        let net = small().init(3, 5, &device).unwrap();
+        assert_eq!(net.kind(), EncoderKind::Disentangled);
+        let dynamic = net.dynamic_encoder.as_ref().unwrap();
+        assert!(dynamic.joint_mlp.layers.iter().chain(&dynamic.mlp.layers).all(|l| l.bias.is_none()));
+        assert!(dynamic.gru.update_gate.input_transform.bias.is_none());
+        assert!(net.decoder.basis.bias.is_none());
+        assert!(net.static_encoder.as_ref().unwrap().layers.iter().all(|l| l.bias.is_some()));
+        let s = Tensor::<4>::ones([2, 4, 3, STATIC_DIM], &device);
+        let d = Tensor::<4>::ones([2, 4, 3, DYNAMIC_DIM], &device);
+        assert_eq!(net.forward(s.clone(), Some(d.clone()), 1.0).dims(), [2, 4, 5, 3]);
+        assert_eq!(net.forward_last(s, Some(d), 1.0, 3).dims(), [2, 3, 5, 3]);
+        let st = ClothNetConfig { encoder: EncoderKind::StaticOnly, ..small() }.init(3, 5, &device).unwrap();
+        assert!(!st.has_dynamic_branch());
+        let en = ClothNetConfig { encoder: EncoderKind::Entangled, ..small() }.init(3, 5, &device).unwrap();
+        assert!(en.static_encoder.is_none());
+        let s = Tensor::<4>::ones([1, 2, 3, STATIC_DIM], &device);
+        assert_eq!(en.forward(s, None, 1.0).dims(), [1, 2, 5, 3]);
+    }
+}

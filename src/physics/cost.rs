@@ -1,0 +1,161 @@
+//! Measures what each loss term costs (forward + backward) on a synthetic garment of a given
+//! number of degrees of freedom, against a baseline measured in the same run: the cheapest
+//! possible loss on the same input, `Σ x²`. `neural-cloth bench` prints this table.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use burn::tensor::{Device, Tensor, TensorData};
+
+use crate::geometry::{Topology, Vec3};
+
+use super::collision::{BodyBatch, Contacts, PosedBody};
+use super::rest::GarmentRest;
+use super::shapes::{tube, uv_sphere};
+use super::tensors::read_f64;
+use super::{ClothModel, Effects, FabricParams, PhysicsError, PhysicsTerms};
+
+/// Cost of one term.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct TermCost {
+    /// What was measured.
+    pub name: String,
+    /// Milliseconds per batch (median of the repeats).
+    pub ms: f64,
+    /// `ms / baseline ms`.
+    pub ratio: f64,
+}
+
+/// A cost table.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct CostReport {
+    /// Degrees of freedom of the garment (3 × vertices).
+    pub dof: usize,
+    /// Batch size.
+    pub batch: usize,
+    /// Body vertices of the collision query.
+    pub body_vertices: usize,
+    /// Device description.
+    pub device: String,
+    /// Baseline (`Σ x²`, forward + backward) milliseconds.
+    pub baseline_ms: f64,
+    /// Terms.
+    pub terms: Vec<TermCost>,
+}
+
+impl CostReport {
+    /// The table as Markdown.
+    pub fn to_markdown(&self) -> String {
+        let mut s = format!(
+            "{} DoF garment, batch {}, {} body vertices, {}; baseline Σx² forward+backward = {:.3} ms\n\n| term | ms / batch | × baseline |\n|---|---:|---:|\n",
+            self.dof, self.batch, self.body_vertices, self.device, self.baseline_ms
+        );
+        for t in &self.terms {
+            s += &format!("| {} | {:.3} | {:.1} |\n", t.name, t.ms, t.ratio);
+        }
+        s
+    }
+}
+
+/// Measures every term at about `dof` degrees of freedom (a flared tube around a sphere) with
+/// `batch` samples, `repeats` timed runs each (after one warm-up), on `device` (autodiff is
+/// enabled on it for the backward passes).
+pub fn measure_term_costs(device: &Device, dof: usize, batch: usize, repeats: usize) -> Result<CostReport, PhysicsError> {
+    let device = device.clone().autodiff();
+    let dtype = device.settings().float_dtype.into();
+    let batch = batch.clamp(1, 256);
+    let repeats = repeats.clamp(1, 1000);
+    let vertices = (dof / 3).max(16);
+    let around = ((vertices as f32 * 2.0).sqrt().round() as usize).max(4);
+    let rows = (vertices / around).max(2) - 1;
+    let mesh = tube(Vec3::new(0.0, 1.0, 0.0), 0.31, 0.45, 0.25, -0.35, around, rows);
+    let topology = Topology::new(&mesh);
+    let top: Vec<u32> = (0..around as u32).collect();
+    let fabric = FabricParams::default();
+    let rest = Arc::new(GarmentRest::new(&mesh, &topology, &top, &[], fabric.density_kg_per_m2)?);
+    let body_mesh = uv_sphere(Vec3::new(0.0, 1.0, 0.0), 0.32, 72, 96);
+    let body = Arc::new(PosedBody::new(body_mesh.positions.clone(), &body_mesh.faces)?);
+    let bodies = BodyBatch::new(vec![body; batch]);
+    let v = mesh.positions.len();
+    let flat: Vec<f32> = (0..batch)
+        .flat_map(|b| {
+            mesh.positions.iter().enumerate().flat_map(move |(i, p)| {
+                let wobble = 0.01 * ((i * 7 + b * 13) as f32).sin();
+                [p.x * (1.0 + wobble), p.y + wobble, p.z * (1.0 - wobble)]
+            })
+        })
+        .collect();
+    let x0 = Tensor::<3>::from_data(TensorData::new(flat.clone(), [batch, v, 3]), (&device, dtype));
+    let all = Effects::default();
+    let terms_of = |model: ClothModel| {
+        let f = FabricParams { cloth_model: model, ..fabric.clone() };
+        PhysicsTerms::from_rest(rest.clone(), &f, &all, &device, dtype)
+    };
+    let bw = terms_of(ClothModel::BaraffWitkin)?;
+    let ms = terms_of(ClothModel::MassSpring)?;
+    let stvk = terms_of(ClothModel::Stvk)?;
+    let no_collision = PhysicsTerms::from_rest(rest.clone(), &fabric, &Effects { collision: false, ..all }, &device, dtype)?;
+    let contacts = Contacts::query(&bodies, &flat, v, &device, dtype)?;
+    let (prev1, prev2) = (x0.clone().mul_scalar(0.999), x0.clone().mul_scalar(0.998));
+
+    let time = |f: &dyn Fn(&Tensor<3>) -> Result<Tensor<1>, PhysicsError>| -> Result<f64, PhysicsError> {
+        let mut samples = Vec::with_capacity(repeats);
+        for k in 0..=repeats {
+            let x = x0.clone().require_grad();
+            let start = Instant::now();
+            let loss = f(&x)?;
+            let grads = loss.backward();
+            if let Some(g) = x.grad(&grads) {
+                read_f64(g.sum())?;
+            }
+            if k > 0 {
+                samples.push(start.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+        samples.sort_by(f64::total_cmp);
+        Ok(samples[samples.len() / 2])
+    };
+    let rt = bw.tensors();
+    let sum_terms = |t: Vec<(super::Term, Tensor<1>)>| t.into_iter().map(|(_, v)| v.sum()).reduce(|a, b| a + b);
+    let baseline = time(&|x| Ok(x.clone().square().sum()))?;
+    let mut rows_out: Vec<(String, f64)> = Vec::new();
+    let mut add = |name: &str, f: &dyn Fn(&Tensor<3>) -> Result<Tensor<1>, PhysicsError>| -> Result<(), PhysicsError> {
+        rows_out.push((name.to_string(), time(f)?));
+        Ok(())
+    };
+    add("baraff-witkin stretch+shear", &|x| {
+        let (a, b) = super::energies::baraff_witkin(x, rt, 10.0, 1.0);
+        Ok((a + b).sum())
+    })?;
+    add("mass-spring", &|x| Ok(super::energies::mass_spring(x, ms.tensors(), 10.0).sum()))?;
+    add("stvk", &|x| Ok(super::energies::stvk(x, stvk.tensors(), 20.9, 11.1).sum()))?;
+    add("bending", &|x| Ok(super::energies::bending(x, rt, 2e-5).sum()))?;
+    add("collision energy (contacts given)", &|x| {
+        Ok(super::collision::collision(x, &contacts, rt, 10.0, 0.004).sum())
+    })?;
+    add("collision query + upload + energy", &|x| {
+        let c = Contacts::for_prediction(&bodies, x, dtype)?;
+        Ok(super::collision::collision(x, &c, rt, 10.0, 0.004).sum())
+    })?;
+    add("gravity", &|x| Ok(super::energies::gravity(x, rt).sum()))?;
+    add("inertia", &|x| Ok(super::energies::inertia(x, &prev1, &prev2, rt, 1.0 / 30.0).sum()))?;
+    add("pinning", &|x| bw.pinning(x, &prev1).ok_or(PhysicsError::MissingBody))?;
+    add("all static terms, collision on (static_losses)", &|x| {
+        bw.static_losses(x, Some(&bodies))?.total().ok_or(PhysicsError::MissingBody)
+    })?;
+    add("all static terms, collision off", &|x| {
+        sum_terms(no_collision.static_energies(x, None)?).ok_or(PhysicsError::MissingBody)
+    })?;
+    let device_name = format!("{:?}", device.clone().without_autodiff());
+    Ok(CostReport {
+        dof: 3 * v,
+        batch,
+        body_vertices: body_mesh.positions.len(),
+        device: device_name,
+        baseline_ms: baseline,
+        terms: rows_out
+            .into_iter()
+            .map(|(name, ms)| TermCost { ratio: ms / baseline.max(1e-9), name, ms })
+            .collect(),
+    })
+}

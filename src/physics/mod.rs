@@ -1,0 +1,107 @@
+//! Physics layer: fabric parameters, the cloth energies of paper §3.4 written once as
+//! device-agnostic burn tensor code, the metrics of §4.2, and a reference simulator (the
+//! paper's "standard simulation", Eq. 8) built on the same energies.
+//!
+//! - [`FabricParams`]: material model, stiffnesses, density, collision and gravity; presets.
+//! - [`GarmentRest`]: rest state (masses, edges, rest frames, hinges) computed once in `f64`.
+//! - [`PhysicsTerms`]: the rest state on a device; evaluates the enabled terms on `[B, V, 3]`
+//!   batches and returns per-term scalars ([`LossTerms`]). Training, evaluation and the
+//!   simulator all go through it.
+//! - [`collision`]: posed bodies, the batched nearest-vertex query, the collision energy.
+//! - [`metrics`]: strain, bending, collision %, gravity and inertia of any mesh sequence.
+//! - [`simulator`]: frame-by-frame minimisation of `½(x - x̃)ᵀM(x - x̃) + Δt² E(x)` with a
+//!   preconditioned L-BFGS ([`lbfgs`]); [`simulator::simulate`] bakes a motion.
+//! - [`cost`]: per-term cost measurement at a given number of degrees of freedom.
+//!
+//! # Conventions
+//! Metres, seconds, kilograms, Y up. Energies are joules, summed over the mesh for each batch
+//! sample; losses are batch means of those sums (the official code's reduction). Triangle
+//! stiffness terms are weighted by `|cross|` (twice the area) so that the paper's stiffness
+//! magnitudes keep their meaning; see [`fabric`] for the exact formulas and their physical
+//! equivalents. Hot-path tensors are `f32`; `f64` is only used on the CPU for rest-state
+//! precomputation and, where the backend supports it, for reference checks.
+//!
+//! # Cost of each term (10K degrees of freedom)
+//! See `docs/PHYSICS.md` for the table measured with [`cost::measure_term_costs`].
+
+pub mod collision;
+pub mod cost;
+pub mod energies;
+pub mod fabric;
+pub mod lbfgs;
+pub mod metrics;
+pub mod rest;
+pub mod shapes;
+pub mod simulator;
+pub mod tensors;
+pub mod terms;
+
+pub use collision::{BodyBatch, Contacts, PosedBody};
+/// The scene's effect set decides which terms are built and evaluated.
+pub use crate::scene::config::Effects;
+pub use fabric::{ClothModel, FabricParams};
+pub use metrics::ClothMetrics;
+pub use rest::GarmentRest;
+pub use simulator::{FrameReport, SimOptions, Simulation, simulate};
+pub use terms::{LossTerms, PhysicsTerms, Term};
+
+/// Errors of the physics layer.
+#[derive(Debug, thiserror::Error)]
+pub enum PhysicsError {
+    /// A fabric parameter is out of range or malformed.
+    #[error("invalid fabric parameter '{field}': {reason}")]
+    InvalidFabric {
+        /// Offending field.
+        field: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// An unknown preset name.
+    #[error("unknown fabric preset '{name}' (known: {known})")]
+    UnknownPreset {
+        /// Requested name.
+        name: String,
+        /// Known names.
+        known: String,
+    },
+    /// The fabric table could not be read.
+    #[error("fabric table: {0}")]
+    FabricTable(String),
+    /// The garment cannot be simulated.
+    #[error("invalid garment: {0}")]
+    InvalidGarment(String),
+    /// The body cannot be used for collisions.
+    #[error("invalid body: {0}")]
+    InvalidBody(String),
+    /// Collision is enabled but no posed body was given.
+    #[error("collision is enabled but no posed body was given")]
+    MissingBody,
+    /// Tensor or array shapes disagree.
+    #[error("{what}: expected {expected}, found {found}")]
+    ShapeMismatch {
+        /// What was checked.
+        what: String,
+        /// Expected shape.
+        expected: String,
+        /// Actual shape.
+        found: String,
+    },
+    /// Invalid simulation options or inputs.
+    #[error("invalid simulation setting: {0}")]
+    InvalidOptions(String),
+    /// A value became NaN or infinite.
+    #[error("non-finite value in {0}")]
+    NonFinite(String),
+    /// Reading a tensor back failed.
+    #[error("tensor backend: {0}")]
+    Backend(String),
+    /// The simulation was cancelled by the progress callback.
+    #[error("simulation cancelled after {frames} frames")]
+    Cancelled {
+        /// Frames finished.
+        frames: usize,
+    },
+    /// A scene-level error (posing, garment building).
+    #[error(transparent)]
+    Scene(#[from] crate::scene::SceneError),
+}

@@ -1,0 +1,216 @@
+//! The trainer-facing loss builder: one [`PhysicsTerms`] per garment holds the rest state on the
+//! device and evaluates the enabled terms on batches of predictions.
+
+use std::sync::Arc;
+
+use burn::tensor::{DType, Device, Tensor};
+
+use crate::scene::Garment;
+
+use super::collision::{self, BodyBatch, Contacts};
+use super::energies;
+use super::rest::GarmentRest;
+use super::tensors::{RestTensors, read_f64};
+use super::{ClothModel, Effects, FabricParams, PhysicsError};
+
+/// A named loss term.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Term {
+    /// In-plane stretch (mass-spring edges, Baraff-Witkin stretch or StVK).
+    Stretch,
+    /// Baraff-Witkin shear.
+    Shear,
+    /// Bending.
+    Bending,
+    /// Body collision.
+    Collision,
+    /// Gravity potential.
+    Gravity,
+    /// Pinning.
+    Pinning,
+    /// Inertia.
+    Inertia,
+}
+
+impl Term {
+    /// Short lowercase name for logs.
+    pub fn name(self) -> &'static str {
+        match self {
+            Term::Stretch => "stretch",
+            Term::Shear => "shear",
+            Term::Bending => "bending",
+            Term::Collision => "collision",
+            Term::Gravity => "gravity",
+            Term::Pinning => "pinning",
+            Term::Inertia => "inertia",
+        }
+    }
+}
+
+/// Loss terms, each a `[1]` tensor: the per-sample energy (sum over the mesh) averaged over the
+/// batch, as in the official code.
+#[derive(Clone, Debug, Default)]
+pub struct LossTerms {
+    /// The terms in evaluation order.
+    pub terms: Vec<(Term, Tensor<1>)>,
+}
+
+impl LossTerms {
+    /// Sum of all terms (None when empty).
+    pub fn total(&self) -> Option<Tensor<1>> {
+        self.terms.iter().map(|(_, t)| t.clone()).reduce(|a, b| a + b)
+    }
+
+    /// The term `term`, if present.
+    pub fn get(&self, term: Term) -> Option<&Tensor<1>> {
+        self.terms.iter().find(|(t, _)| *t == term).map(|(_, v)| v)
+    }
+
+    /// Adds a term.
+    pub fn push(&mut self, term: Term, value: Tensor<1>) {
+        self.terms.push((term, value));
+    }
+
+    /// Reads every term back (one device read per term) for logging.
+    pub fn values(&self) -> Result<Vec<(Term, f64)>, PhysicsError> {
+        self.terms
+            .iter()
+            .map(|(t, v)| Ok((*t, read_f64(v.clone().detach())?.first().copied().unwrap_or(0.0))))
+            .collect()
+    }
+}
+
+/// Physics of one garment: fabric, effects and the rest state uploaded once to a device.
+#[derive(Clone, Debug)]
+pub struct PhysicsTerms {
+    rest: Arc<GarmentRest>,
+    fabric: FabricParams,
+    effects: Effects,
+    tensors: RestTensors,
+}
+
+impl PhysicsTerms {
+    /// Builds the terms of `garment` on `device` with the device's default float dtype.
+    pub fn new(garment: &Garment, fabric: &FabricParams, effects: &Effects, device: &Device) -> Result<Self, PhysicsError> {
+        fabric.validate()?;
+        let rest = GarmentRest::from_garment(garment, fabric)?;
+        let dtype = device.settings().float_dtype.into();
+        Self::from_rest(Arc::new(rest), fabric, effects, device, dtype)
+    }
+
+    /// Builds the terms from a precomputed rest state with an explicit float dtype (`F64` is
+    /// useful for reference checks on backends that support it).
+    pub fn from_rest(
+        rest: Arc<GarmentRest>,
+        fabric: &FabricParams,
+        effects: &Effects,
+        device: &Device,
+        dtype: DType,
+    ) -> Result<Self, PhysicsError> {
+        fabric.validate()?;
+        let tensors = RestTensors::new(&rest, fabric.gravity(), effects, device, dtype);
+        Ok(Self { rest, fabric: fabric.clone(), effects: *effects, tensors })
+    }
+
+    /// The rest state.
+    pub fn rest(&self) -> &GarmentRest {
+        &self.rest
+    }
+
+    /// The fabric.
+    pub fn fabric(&self) -> &FabricParams {
+        &self.fabric
+    }
+
+    /// The effects.
+    pub fn effects(&self) -> &Effects {
+        &self.effects
+    }
+
+    /// The device tensors.
+    pub fn tensors(&self) -> &RestTensors {
+        &self.tensors
+    }
+
+    /// Float dtype of the terms.
+    pub fn dtype(&self) -> DType {
+        self.tensors.dtype
+    }
+
+    /// Device of the terms.
+    pub fn device(&self) -> &Device {
+        &self.tensors.device
+    }
+
+    /// Nearest-vertex contacts of `x` against `body` (detached CPU query, then upload).
+    pub fn contacts(&self, x: &Tensor<3>, body: &BodyBatch) -> Result<Contacts, PhysicsError> {
+        self.tensors.batch_of(x)?;
+        Contacts::for_prediction(body, x, self.tensors.dtype)
+    }
+
+    /// In-plane energy terms per sample (`[B]` each): stretch, plus shear for Baraff-Witkin.
+    pub fn cloth_energies(&self, x: &Tensor<3>) -> Vec<(Term, Tensor<1>)> {
+        let f = &self.fabric;
+        let rt = &self.tensors;
+        match f.cloth_model {
+            ClothModel::MassSpring => vec![(Term::Stretch, energies::mass_spring(x, rt, f.stretch_stiffness))],
+            ClothModel::BaraffWitkin => {
+                let (stretch, shear) = energies::baraff_witkin(x, rt, f.stretch_stiffness, f.shear_stiffness);
+                vec![(Term::Stretch, stretch), (Term::Shear, shear)]
+            }
+            ClothModel::Stvk => vec![(Term::Stretch, energies::stvk(x, rt, f.lame_lambda, f.lame_mu))],
+        }
+    }
+
+    /// Every enabled static energy per sample (`[B]` each): cloth, bending, collision (with
+    /// `contacts`, required when collision is on), gravity.
+    pub fn static_energies(&self, x: &Tensor<3>, contacts: Option<&Contacts>) -> Result<Vec<(Term, Tensor<1>)>, PhysicsError> {
+        self.tensors.batch_of(x)?;
+        let f = &self.fabric;
+        let rt = &self.tensors;
+        let mut out = self.cloth_energies(x);
+        if self.effects.bending {
+            out.push((Term::Bending, energies::bending(x, rt, f.bending_stiffness)));
+        }
+        if self.effects.collision {
+            let contacts = contacts.ok_or(PhysicsError::MissingBody)?;
+            out.push((Term::Collision, collision::collision(x, contacts, rt, f.collision_stiffness, f.collision_threshold_m)));
+        }
+        if self.effects.gravity {
+            out.push((Term::Gravity, energies::gravity(x, rt)));
+        }
+        Ok(out)
+    }
+
+    /// Static losses of the last predicted frame `x` (`[B, V, 3]`), batch means. `body` is
+    /// required when collision is on (its nearest-vertex query runs here).
+    pub fn static_losses(&self, x: &Tensor<3>, body: Option<&BodyBatch>) -> Result<LossTerms, PhysicsError> {
+        let contacts = match (self.effects.collision, body) {
+            (true, Some(body)) => Some(self.contacts(x, body)?),
+            (true, None) => return Err(PhysicsError::MissingBody),
+            (false, _) => None,
+        };
+        self.static_losses_with(x, contacts.as_ref())
+    }
+
+    /// Like [`Self::static_losses`] with precomputed contacts.
+    pub fn static_losses_with(&self, x: &Tensor<3>, contacts: Option<&Contacts>) -> Result<LossTerms, PhysicsError> {
+        let terms = self.static_energies(x, contacts)?;
+        Ok(LossTerms { terms: terms.into_iter().map(|(t, v)| (t, v.mean())).collect() })
+    }
+
+    /// Inertia loss (batch mean) of `x_t` given the two previous frames; gradients reach only
+    /// `x_t`. None when dynamics is off.
+    pub fn inertia(&self, x_t: &Tensor<3>, x_t1: &Tensor<3>, x_t2: &Tensor<3>, dt_secs: f32) -> Option<Tensor<1>> {
+        self.effects
+            .dynamics
+            .then(|| energies::inertia(x_t, x_t1, x_t2, &self.tensors, dt_secs).mean())
+    }
+
+    /// Pinning loss (batch mean) pulling pinned vertices of `x` to the same rows of `target`
+    /// (`[B, V, 3]`, detached). None when pinning is off or nothing is pinned.
+    pub fn pinning(&self, x: &Tensor<3>, target: &Tensor<3>) -> Option<Tensor<1>> {
+        let pinned = self.tensors.pinned.as_ref()?;
+        Some(energies::pinning(x, target, pinned, self.fabric.pinning_stiffness).mean())
+    }
+}

@@ -1,0 +1,644 @@
+//! Scene configuration: which avatar, garment and motions make a scene, which physical
+//! effects it needs, the fabric (opaque here) and the training frame rate.
+//!
+//! Human-edited files are TOML. Every source is either built in (`builtin = "mannequin"`,
+//! `builtin = "tshirt"`, `builtin = "walk"`) or a file (`path = "..."`, relative to the config
+//! file's folder). See `assets/default-scene.toml` for a complete, commented example.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::procedural::{GarmentKind, MotionKind};
+use super::{Avatar, Garment, Motion, Scene, SceneError};
+
+/// Errors of scene configuration files.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file could not be read or written.
+    #[error("cannot access scene config ({source}): {}", path.display())]
+    Io {
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+        /// The file.
+        path: PathBuf,
+    },
+    /// The text is not valid TOML or does not match the schema.
+    #[error("malformed scene config: {0}")]
+    Parse(String),
+    /// A value is out of range or inconsistent.
+    #[error("invalid scene config: {field}: {reason}")]
+    Invalid {
+        /// Dotted path of the offending field, e.g. `motions[2].duration_secs`.
+        field: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A source must be built in for this operation but names a file.
+    #[error("{field} names a file; only built-in sources can be built without the importers")]
+    NotBuiltin {
+        /// Which source.
+        field: String,
+    },
+    /// Building the scene failed.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// Any of the above, for the file at `path`.
+    #[error("{source}: {}", path.display())]
+    InFile {
+        /// The underlying error.
+        #[source]
+        source: Box<ConfigError>,
+        /// The config file.
+        path: PathBuf,
+    },
+}
+
+/// Which part of the data a motion belongs to.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Split {
+    /// Used for training.
+    #[default]
+    Train,
+    /// Used for validation metrics during training.
+    Validation,
+    /// Held out for final evaluation.
+    Test,
+}
+
+/// Length unit of a file whose own units are not trusted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum LengthUnit {
+    /// Metres.
+    #[serde(rename = "m")]
+    Metres,
+    /// Centimetres.
+    #[serde(rename = "cm")]
+    Centimetres,
+    /// Millimetres.
+    #[serde(rename = "mm")]
+    Millimetres,
+    /// Inches.
+    #[serde(rename = "in")]
+    Inches,
+}
+
+impl LengthUnit {
+    /// Metres per unit.
+    pub fn metres_per_unit(self) -> f32 {
+        match self {
+            LengthUnit::Metres => 1.0,
+            LengthUnit::Centimetres => 0.01,
+            LengthUnit::Millimetres => 0.001,
+            LengthUnit::Inches => 0.0254,
+        }
+    }
+}
+
+/// Built-in avatars.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BuiltinAvatar {
+    /// The procedural mannequin (`procedural::mannequin`).
+    Mannequin,
+}
+
+/// Where the avatar comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "RawSource", into = "RawSource")]
+pub enum AvatarSource {
+    /// A built-in avatar: `builtin = "mannequin"`.
+    Builtin {
+        /// Which one.
+        builtin: BuiltinAvatar,
+    },
+    /// A skinned glTF/GLB file: `path = "avatars/body.glb"`, optional `units`.
+    File {
+        /// Path, relative to the config file's folder.
+        path: PathBuf,
+        /// Unit of the file's lengths; default: the file's own (glTF: metres).
+        units: Option<LengthUnit>,
+    },
+}
+
+/// Where the garment comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "RawSource", into = "RawSource")]
+pub enum GarmentSource {
+    /// A built-in garment: `builtin = "tshirt" | "skirt" | "dress"`, optional `resolution`
+    /// and `smoothing_passes` (needs the mannequin).
+    Builtin {
+        /// Which one.
+        builtin: GarmentKind,
+        /// Target vertex count (degrees of freedom / 3); 200..=500000, default 3400 (about
+        /// 10K DoF); the result is within a few percent.
+        resolution: usize,
+        /// Skin-weight smoothing passes, 0..=200; default: the kind's recommendation
+        /// (5 for the t-shirt, 30 for skirt and dress).
+        smoothing_passes: Option<usize>,
+    },
+    /// A garment file (OBJ or glTF) in the avatar's rest pose: `path`, optional `units` and
+    /// `smoothing_passes`.
+    File {
+        /// Path, relative to the config file's folder.
+        path: PathBuf,
+        /// Unit of the file's lengths; default: metres for glTF, guessed for OBJ.
+        units: Option<LengthUnit>,
+        /// Skin-weight smoothing passes, 0..=200; default 3 (use 20-50 for skirts).
+        smoothing_passes: Option<usize>,
+    },
+}
+
+/// Where a motion comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "RawSource", into = "RawSource")]
+pub enum MotionSource {
+    /// A procedural motion: `builtin = "idle" | "walk" | "run" | "jump" | "turn" | "spin"`,
+    /// optional `duration_secs`, `fps`, `split`, `name` (needs the mannequin).
+    Builtin {
+        /// Which one.
+        builtin: MotionKind,
+        /// Length in seconds, (0, 3600], default 6.
+        duration_secs: f32,
+        /// Sampling rate in frames per second, [1, 1000]; default: the scene's `training_fps`.
+        fps: Option<f32>,
+        /// Data split, default "train".
+        split: Split,
+        /// Display name; default: the kind's name.
+        name: Option<String>,
+    },
+    /// A motion file (BVH, or the animations of a glTF/GLB file): `path`, optional `units`,
+    /// `split`, `name`.
+    File {
+        /// Path, relative to the config file's folder.
+        path: PathBuf,
+        /// Unit of the file's lengths; default: the file's own (BVH: guessed from the height).
+        units: Option<LengthUnit>,
+        /// Data split, default "train".
+        split: Split,
+        /// Animation to take from a file holding several; default: all of them (each keeps
+        /// its own name; a BVH motion is named after the file stem).
+        name: Option<String>,
+    },
+}
+
+/// The TOML shape shared by all sources; converted with field checks and clear messages.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSource {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    builtin: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    path: Option<PathBuf>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    units: Option<LengthUnit>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    resolution: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    smoothing_passes: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    duration_secs: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    fps: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    split: Option<Split>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    name: Option<String>,
+}
+
+impl RawSource {
+    /// Checks that exactly one of `builtin`/`path` is set and no field outside `allowed`.
+    fn check(&self, what: &str, expected: &str, allowed: &[&str]) -> Result<(), String> {
+        match (&self.builtin, &self.path) {
+            (Some(_), Some(_)) => return Err(format!("{what}: set either `builtin` or `path`, not both")),
+            (None, None) => return Err(format!("{what}: set `builtin` (one of {expected}) or `path`")),
+            _ => {}
+        }
+        let set = [
+            ("units", self.units.is_some()),
+            ("resolution", self.resolution.is_some()),
+            ("smoothing_passes", self.smoothing_passes.is_some()),
+            ("duration_secs", self.duration_secs.is_some()),
+            ("fps", self.fps.is_some()),
+            ("split", self.split.is_some()),
+            ("name", self.name.is_some()),
+        ];
+        let kind = if self.builtin.is_some() { "built-in" } else { "file" };
+        match set.iter().find(|(field, on)| *on && !allowed.contains(field)) {
+            Some((field, _)) => Err(format!("{what}: `{field}` does not apply to a {kind} {what}")),
+            None => Ok(()),
+        }
+    }
+}
+
+fn unknown(what: &str, name: &str, expected: &str) -> String {
+    format!("unknown built-in {what} \"{name}\" (expected one of {expected})")
+}
+
+impl TryFrom<RawSource> for AvatarSource {
+    type Error = String;
+    fn try_from(raw: RawSource) -> Result<Self, String> {
+        let expected = "\"mannequin\"";
+        match (raw.builtin.clone(), raw.path.clone()) {
+            (Some(b), None) => {
+                raw.check("avatar", expected, &[])?;
+                match b.as_str() {
+                    "mannequin" => Ok(Self::Builtin { builtin: BuiltinAvatar::Mannequin }),
+                    other => Err(unknown("avatar", other, expected)),
+                }
+            }
+            (_, path) => {
+                raw.check("avatar", expected, &["units"])?;
+                Ok(Self::File { path: path.unwrap_or_default(), units: raw.units })
+            }
+        }
+    }
+}
+
+impl From<AvatarSource> for RawSource {
+    fn from(s: AvatarSource) -> Self {
+        match s {
+            AvatarSource::Builtin { .. } => Self { builtin: Some("mannequin".into()), ..Self::default() },
+            AvatarSource::File { path, units } => Self { path: Some(path), units, ..Self::default() },
+        }
+    }
+}
+
+impl TryFrom<RawSource> for GarmentSource {
+    type Error = String;
+    fn try_from(raw: RawSource) -> Result<Self, String> {
+        let expected = "\"tshirt\", \"skirt\", \"dress\"";
+        match (raw.builtin.clone(), raw.path.clone()) {
+            (Some(b), None) => {
+                raw.check("garment", expected, &["resolution", "smoothing_passes"])?;
+                let builtin = GarmentKind::from_name(&b).ok_or_else(|| unknown("garment", &b, expected))?;
+                let resolution = raw.resolution.unwrap_or_else(default_resolution);
+                Ok(Self::Builtin { builtin, resolution, smoothing_passes: raw.smoothing_passes })
+            }
+            (_, path) => {
+                raw.check("garment", expected, &["units", "smoothing_passes"])?;
+                Ok(Self::File { path: path.unwrap_or_default(), units: raw.units, smoothing_passes: raw.smoothing_passes })
+            }
+        }
+    }
+}
+
+impl From<GarmentSource> for RawSource {
+    fn from(s: GarmentSource) -> Self {
+        match s {
+            GarmentSource::Builtin { builtin, resolution, smoothing_passes } => Self {
+                builtin: Some(builtin.name().into()),
+                resolution: Some(resolution),
+                smoothing_passes,
+                ..Self::default()
+            },
+            GarmentSource::File { path, units, smoothing_passes } => {
+                Self { path: Some(path), units, smoothing_passes, ..Self::default() }
+            }
+        }
+    }
+}
+
+impl TryFrom<RawSource> for MotionSource {
+    type Error = String;
+    fn try_from(raw: RawSource) -> Result<Self, String> {
+        let expected = "\"idle\", \"walk\", \"run\", \"jump\", \"turn\", \"spin\"";
+        let split = raw.split.unwrap_or_default();
+        match (raw.builtin.clone(), raw.path.clone()) {
+            (Some(b), None) => {
+                raw.check("motion", expected, &["duration_secs", "fps", "split", "name"])?;
+                let builtin = MotionKind::from_name(&b).ok_or_else(|| unknown("motion", &b, expected))?;
+                let duration_secs = raw.duration_secs.unwrap_or_else(default_duration);
+                Ok(Self::Builtin { builtin, duration_secs, fps: raw.fps, split, name: raw.name })
+            }
+            (_, path) => {
+                raw.check("motion", expected, &["units", "split", "name"])?;
+                Ok(Self::File { path: path.unwrap_or_default(), units: raw.units, split, name: raw.name })
+            }
+        }
+    }
+}
+
+impl From<MotionSource> for RawSource {
+    fn from(s: MotionSource) -> Self {
+        match s {
+            MotionSource::Builtin { builtin, duration_secs, fps, split, name } => Self {
+                builtin: Some(builtin.name().into()),
+                duration_secs: Some(duration_secs),
+                fps,
+                split: Some(split),
+                name,
+                ..Self::default()
+            },
+            MotionSource::File { path, units, split, name } => {
+                Self { path: Some(path), units, split: Some(split), name, ..Self::default() }
+            }
+        }
+    }
+}
+
+/// Physical effects a scene needs; only declared effects are built and evaluated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Effects {
+    /// Gravity pulls the cloth down (gravity energy term). Default true.
+    pub gravity: bool,
+    /// Resistance to folding (bending energy on dihedral angles). Default true.
+    pub bending: bool,
+    /// The cloth stays outside the body (collision term, body distance queries). Default true.
+    pub collision: bool,
+    /// Inertia and the dynamic branch of the model; false gives a static, PBNS-like model.
+    /// Default true.
+    pub dynamics: bool,
+    /// Pinned vertices follow the skinned garment exactly (e.g. a waistband). Default false.
+    pub pinning: bool,
+}
+
+impl Default for Effects {
+    fn default() -> Self {
+        Self { gravity: true, bending: true, collision: true, dynamics: true, pinning: false }
+    }
+}
+
+/// A scene description as written in TOML.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneConfig {
+    /// Display name, non-empty.
+    pub name: String,
+    /// The avatar.
+    pub avatar: AvatarSource,
+    /// The garment.
+    pub garment: GarmentSource,
+    /// Motions with their splits; at least one must be in the "train" split.
+    #[serde(default)]
+    pub motions: Vec<MotionSource>,
+    /// Physical effects; default: all but pinning.
+    #[serde(default)]
+    pub effects: Effects,
+    /// Fabric parameters, parsed by the physics layer; default `{ preset = "default" }`.
+    #[serde(default = "default_fabric")]
+    pub fabric: toml::Table,
+    /// Frame rate motions are resampled to for training, frames per second, [1, 1000],
+    /// default 30.
+    #[serde(default = "default_training_fps")]
+    pub training_fps: f32,
+}
+
+fn default_resolution() -> usize {
+    super::procedural::garments::DEFAULT_VERTICES
+}
+fn default_duration() -> f32 {
+    6.0
+}
+fn default_training_fps() -> f32 {
+    30.0
+}
+/// The default fabric table, `{ preset = "default" }`.
+pub fn default_fabric() -> toml::Table {
+    let mut t = toml::Table::new();
+    t.insert("preset".into(), toml::Value::String("default".into()));
+    t
+}
+
+fn invalid(field: impl Into<String>, reason: impl Into<String>) -> ConfigError {
+    ConfigError::Invalid { field: field.into(), reason: reason.into() }
+}
+
+fn check_rate(field: String, fps: f32) -> Result<(), ConfigError> {
+    if fps.is_finite() && (1.0..=1000.0).contains(&fps) {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("{fps} frames per second is outside [1, 1000]")))
+    }
+}
+
+fn check_passes(field: String, passes: Option<usize>) -> Result<(), ConfigError> {
+    match passes {
+        Some(p) if p > 200 => Err(invalid(field, format!("{p} smoothing passes is more than 200"))),
+        _ => Ok(()),
+    }
+}
+
+fn check_path(field: String, path: &Path) -> Result<(), ConfigError> {
+    if path.as_os_str().is_empty() { Err(invalid(field, "empty path")) } else { Ok(()) }
+}
+
+impl SceneConfig {
+    /// The built-in default scene: mannequin, t-shirt (about 10K DoF) and all procedural
+    /// motions, split per action (idle/walk/run/jump train, turn validation, spin test).
+    pub fn default_scene() -> Self {
+        let motions = MotionKind::ALL
+            .into_iter()
+            .map(|kind| MotionSource::Builtin {
+                builtin: kind,
+                duration_secs: match kind {
+                    MotionKind::Turn => 6.4,
+                    MotionKind::Jump => 5.4,
+                    _ => 6.0,
+                },
+                fps: None,
+                split: kind.default_split(),
+                name: None,
+            })
+            .collect();
+        Self {
+            name: "default".into(),
+            avatar: AvatarSource::Builtin { builtin: BuiltinAvatar::Mannequin },
+            garment: GarmentSource::Builtin { builtin: GarmentKind::TShirt, resolution: default_resolution(), smoothing_passes: None },
+            motions,
+            effects: Effects::default(),
+            fabric: default_fabric(),
+            training_fps: default_training_fps(),
+        }
+    }
+
+    /// Parses and validates a TOML scene description.
+    pub fn from_toml_str(text: &str) -> Result<Self, ConfigError> {
+        let config: Self = toml::from_str(text).map_err(|e| ConfigError::Parse(e.to_string()))?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Reads, parses and validates a scene file. Relative paths inside stay as written;
+    /// resolve them with [`SceneConfig::resolve_path`] and the file's folder.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let in_file = |source: ConfigError| ConfigError::InFile { source: Box::new(source), path: path.to_path_buf() };
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io { source, path: path.to_path_buf() })?;
+        Self::from_toml_str(&text).map_err(in_file)
+    }
+
+    /// `path` as seen from a config file in folder `config_dir` (absolute paths unchanged).
+    pub fn resolve_path(config_dir: &Path, path: &Path) -> PathBuf {
+        if path.is_absolute() { path.to_path_buf() } else { config_dir.join(path) }
+    }
+
+    /// Serialises to TOML (validated first, so what is written can be read back).
+    pub fn to_toml_string(&self) -> Result<String, ConfigError> {
+        self.validate()?;
+        toml::to_string_pretty(self).map_err(|e| ConfigError::Parse(e.to_string()))
+    }
+
+    /// Checks ranges and consistency; the first problem found is returned.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.name.trim().is_empty() {
+            return Err(invalid("name", "must not be empty"));
+        }
+        check_rate("training_fps".into(), self.training_fps)?;
+        let builtin_avatar = matches!(self.avatar, AvatarSource::Builtin { .. });
+        if let AvatarSource::File { path, .. } = &self.avatar {
+            check_path("avatar.path".into(), path)?;
+        }
+        match &self.garment {
+            GarmentSource::Builtin { builtin, resolution, smoothing_passes } => {
+                use super::procedural::garments::{MAX_VERTICES, MIN_VERTICES};
+                if !(MIN_VERTICES..=MAX_VERTICES).contains(resolution) {
+                    return Err(invalid(
+                        "garment.resolution",
+                        format!("{resolution} vertices is outside {MIN_VERTICES}..={MAX_VERTICES}"),
+                    ));
+                }
+                if !builtin_avatar {
+                    return Err(invalid("garment.builtin", format!("built-in garment '{}' needs the built-in mannequin", builtin.name())));
+                }
+                check_passes("garment.smoothing_passes".into(), *smoothing_passes)?;
+            }
+            GarmentSource::File { path, smoothing_passes, .. } => {
+                check_path("garment.path".into(), path)?;
+                check_passes("garment.smoothing_passes".into(), *smoothing_passes)?;
+            }
+        }
+        if self.motions.is_empty() {
+            return Err(invalid("motions", "at least one motion is needed"));
+        }
+        for (k, m) in self.motions.iter().enumerate() {
+            match m {
+                MotionSource::Builtin { builtin, duration_secs, fps, name, .. } => {
+                    if !(duration_secs.is_finite() && *duration_secs > 0.0 && *duration_secs <= 3600.0) {
+                        return Err(invalid(format!("motions[{k}].duration_secs"), format!("{duration_secs} s is outside (0, 3600]")));
+                    }
+                    if let Some(fps) = fps {
+                        check_rate(format!("motions[{k}].fps"), *fps)?;
+                    }
+                    if !builtin_avatar {
+                        return Err(invalid(format!("motions[{k}].builtin"), format!("built-in motion '{}' needs the built-in mannequin", builtin.name())));
+                    }
+                    if name.as_deref().is_some_and(|n| n.trim().is_empty()) {
+                        return Err(invalid(format!("motions[{k}].name"), "must not be empty when given"));
+                    }
+                }
+                MotionSource::File { path, .. } => check_path(format!("motions[{k}].path"), path)?,
+            }
+        }
+        if !self.motions.iter().any(|m| m.split() == Split::Train) {
+            return Err(invalid("motions", "no motion is in the \"train\" split"));
+        }
+        Ok(())
+    }
+
+    /// Assembles a scene from sources the caller has already loaded (one motion list entry
+    /// per loaded motion, with its split), taking name, effects, fabric and rate from here.
+    pub fn assemble(&self, avatar: Avatar, garment: Garment, motions: Vec<(Motion, Split)>) -> Result<Scene, SceneError> {
+        Scene::new(self.name.clone(), avatar, garment, motions, self.effects, self.fabric.clone(), self.training_fps)
+    }
+}
+
+impl MotionSource {
+    /// The motion's data split.
+    pub fn split(&self) -> Split {
+        match self {
+            MotionSource::Builtin { split, .. } | MotionSource::File { split, .. } => *split,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DEFAULT_TOML: &str = include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/default-scene.toml"));
+
+    #[test]
+    fn default_asset_matches_code_default() {
+        let parsed = SceneConfig::from_toml_str(DEFAULT_TOML).unwrap();
+        assert_eq!(parsed, SceneConfig::default_scene());
+        let again = SceneConfig::from_toml_str(&parsed.to_toml_string().unwrap()).unwrap();
+        assert_eq!(again, parsed);
+    }
+
+    #[test]
+    fn defaults_fill_in() {
+        let c = SceneConfig::from_toml_str(
+            "name = \"x\"\navatar = { builtin = \"mannequin\" }\ngarment = { builtin = \"skirt\" }\n[[motions]]\nbuiltin = \"walk\"\n",
+        )
+        .unwrap();
+        assert_eq!(c.training_fps, 30.0);
+        assert_eq!(c.effects, Effects::default());
+        assert!(!c.effects.pinning);
+        assert_eq!(c.fabric.get("preset").and_then(|v| v.as_str()), Some("default"));
+        assert_eq!(c.garment, GarmentSource::Builtin { builtin: GarmentKind::Skirt, resolution: 3400, smoothing_passes: None });
+        assert_eq!(c.motions[0].split(), Split::Train);
+    }
+
+    #[test]
+    fn file_sources_parse_with_units_and_splits() {
+        let c = SceneConfig::from_toml_str(
+            r#"name = "files"
+avatar = { path = "avatars/body.glb" }
+garment = { path = "garments/shirt.obj", units = "cm", smoothing_passes = 40 }
+[[motions]]
+path = "motions/walk.bvh"
+units = "in"
+split = "validation"
+[[motions]]
+path = "avatars/body.glb"
+name = "Run"
+"#,
+        )
+        .unwrap();
+        assert!(matches!(&c.garment, GarmentSource::File { units: Some(LengthUnit::Centimetres), smoothing_passes: Some(40), .. }));
+        assert_eq!(c.motions[0].split(), Split::Validation);
+        let dir = Path::new("/scenes");
+        assert_eq!(SceneConfig::resolve_path(dir, Path::new("a/b.obj")), PathBuf::from("/scenes/a/b.obj"));
+    }
+
+    #[test]
+    fn bad_values_give_clear_errors() {
+        let base = SceneConfig::default_scene();
+        let mut c = base.clone();
+        c.training_fps = 0.0;
+        assert!(c.validate().unwrap_err().to_string().contains("training_fps"));
+        let mut c = base.clone();
+        c.garment = GarmentSource::Builtin { builtin: GarmentKind::Dress, resolution: 10, smoothing_passes: None };
+        assert!(c.validate().unwrap_err().to_string().contains("garment.resolution"));
+        let mut c = base.clone();
+        c.avatar = AvatarSource::File { path: "x.glb".into(), units: None };
+        assert!(c.validate().unwrap_err().to_string().contains("needs the built-in mannequin"));
+        let mut c = base.clone();
+        c.motions.retain(|m| m.split() != Split::Train);
+        assert!(c.validate().unwrap_err().to_string().contains("train"));
+        let err = SceneConfig::from_toml_str("name = \"x\"\navatar = { builtin = \"robot\" }").unwrap_err();
+        assert!(matches!(err, ConfigError::Parse(_)), "{err}");
+        assert!(err.to_string().contains("unknown built-in avatar \"robot\""), "{err}");
+        let err = SceneConfig::from_toml_str(&DEFAULT_TOML.replace("builtin = \"tshirt\"", "builtin = \"tshirt\"\npath = \"a.obj\"")).unwrap_err();
+        assert!(err.to_string().contains("not both"), "{err}");
+        let err = SceneConfig::from_toml_str(&DEFAULT_TOML.replace("builtin = \"mannequin\"", "builtin = \"mannequin\"\nresolution = 5")).unwrap_err();
+        assert!(err.to_string().contains("`resolution` does not apply"), "{err}");
+        let err = SceneConfig::from_toml_str(&DEFAULT_TOML.replace("training_fps", "training_fsp")).unwrap_err();
+        assert!(err.to_string().contains("training_fsp"), "{err}");
+    }
+
+    #[test]
+    fn load_names_the_file_last() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("scene.toml");
+        std::fs::write(&path, "name = \"\"\navatar = { builtin = \"mannequin\" }\ngarment = { builtin = \"tshirt\" }").unwrap();
+        let msg = SceneConfig::load(&path).unwrap_err().to_string();
+        assert!(msg.ends_with(&path.display().to_string()), "{msg}");
+        assert!(msg.contains("name"), "{msg}");
+        let missing = SceneConfig::load(&dir.path().join("none.toml")).unwrap_err();
+        assert!(matches!(missing, ConfigError::Io { .. }));
+    }
+}

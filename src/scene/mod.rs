@@ -1,0 +1,119 @@
+//! Scene layer: avatars (skeleton, rest mesh, skin weights), garments (template and
+//! transferred skin weights), motions (poses, resampling, mirroring), procedural defaults and
+//! the scene configuration.
+
+pub mod avatar;
+pub mod garment;
+pub mod motion;
+pub mod skeleton;
+
+pub use avatar::Avatar;
+pub use garment::{Garment, GarmentOptions};
+pub use motion::Motion;
+pub use skeleton::{JointTransform, Pose, Skeleton};
+
+use crate::geometry::MeshError;
+
+/// Errors of the scene layer.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The joint hierarchy is inconsistent.
+    #[error("invalid skeleton: {0}")]
+    InvalidSkeleton(String),
+    /// A motion has unusable data.
+    #[error("invalid motion '{name}': {reason}")]
+    InvalidMotion {
+        /// Motion name.
+        name: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// Two things that must agree on a count do not.
+    #[error("{what}: expected {expected}, found {found}")]
+    JointCountMismatch {
+        /// What was being checked.
+        what: String,
+        /// Expected count.
+        expected: usize,
+        /// Actual count.
+        found: usize,
+    },
+    /// A garment cannot be used.
+    #[error("invalid garment '{name}': {reason}")]
+    InvalidGarment {
+        /// Garment name.
+        name: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A mesh failed validation.
+    #[error("{what}: {source}")]
+    Mesh {
+        /// Which mesh.
+        what: String,
+        /// The mesh error.
+        #[source]
+        source: MeshError,
+    },
+}
+
+pub mod config;
+pub mod procedural;
+
+pub use config::{Effects, SceneConfig, Split};
+
+/// A complete scene: avatar, garment, motions with their data splits, the declared physical
+/// effects, the fabric table (parsed by the physics layer) and the training frame rate.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// Display name.
+    pub name: String,
+    /// The body.
+    pub avatar: Avatar,
+    /// The garment, in the avatar's rest pose.
+    pub garment: Garment,
+    /// Motions for the avatar's skeleton, each with its split.
+    pub motions: Vec<(Motion, Split)>,
+    /// Effects to build and evaluate.
+    pub effects: Effects,
+    /// Fabric parameters (opaque here), e.g. `{ preset = "default" }`.
+    pub fabric: toml::Table,
+    /// Frame rate motions are resampled to for training, frames per second (> 0).
+    pub training_fps: f32,
+}
+
+impl Scene {
+    /// Assembles a scene, checking that every motion fits the avatar's skeleton and that the
+    /// training rate is positive.
+    pub fn new(
+        name: String,
+        avatar: Avatar,
+        garment: Garment,
+        motions: Vec<(Motion, Split)>,
+        effects: Effects,
+        fabric: toml::Table,
+        training_fps: f32,
+    ) -> Result<Self, SceneError> {
+        if !(training_fps.is_finite() && training_fps > 0.0) {
+            return Err(SceneError::InvalidMotion {
+                name: name.clone(),
+                reason: format!("training rate {training_fps} frames per second is not positive"),
+            });
+        }
+        for (m, _) in &motions {
+            if let Some(found) = m.frames.iter().map(|p| p.rotations.len()).find(|&n| n != avatar.skeleton.len()) {
+                return Err(SceneError::JointCountMismatch {
+                    what: format!("motion '{}' for avatar '{}'", m.name, avatar.name),
+                    expected: avatar.skeleton.len(),
+                    found,
+                });
+            }
+        }
+        Ok(Self { name, avatar, garment, motions, effects, fabric, training_fps })
+    }
+
+    /// The motions in `split`.
+    pub fn motions_in(&self, split: Split) -> impl Iterator<Item = &Motion> {
+        self.motions.iter().filter(move |(_, s)| *s == split).map(|(m, _)| m)
+    }
+}

@@ -1,0 +1,153 @@
+//! Training configuration: batch, temporal window, frame rate, optimiser and schedule.
+
+use serde::{Deserialize, Serialize};
+
+/// How the inertia loss treats past frames (paper §4.5).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InertiaMode {
+    /// Ours: the projection `2x_{t-1} - x_{t-2}` is a constant (stop-gradient); only `x_t` learns.
+    #[default]
+    Ours,
+    /// SNUG-style: gradients also flow into the past frames.
+    Snug,
+}
+
+/// Which compute backend trains the model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BackendKind {
+    /// burn's `flex` CPU backend (default; fastest CPU backend measured on our step).
+    #[default]
+    Cpu,
+    /// burn-wgpu on the first GPU adapter.
+    Wgpu,
+}
+
+/// Everything that decides how a model is trained. Units in field names.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrainConfig {
+    /// Windows per batch; 1..=256, default 16 (the paper uses up to 32).
+    pub batch_size: usize,
+    /// Temporal window in seconds; 0.05..=4, default 0.5 (looser garments need up to 2 s).
+    pub window_secs: f32,
+    /// Frame rate the motions are resampled to for training, in fps; 5..=240, default 30.
+    pub fps: f32,
+    /// Adam learning rate; (0, 1], default 1e-3.
+    pub learning_rate: f64,
+    /// Stop after this many optimiser steps (None = no limit). Default None.
+    pub max_steps: Option<u64>,
+    /// Stop after this many minutes of wall-clock time (None = no limit). Default None.
+    pub max_minutes: Option<f64>,
+    /// Validate every this many steps; >= 1, default 50.
+    pub validate_every: u64,
+    /// Send a weight snapshot for preview every this many steps; >= 1, default 10.
+    pub snapshot_every: u64,
+    /// Write a checkpoint every this many steps; >= 1, default 200.
+    pub checkpoint_every: u64,
+    /// Add left/right mirrored copies of the training motions. Default true.
+    pub mirror_poses: bool,
+    /// Fraction of each batch whose dynamic codes are shuffled (motion augmentation, static
+    /// losses only, no encoder gradient); 0..=0.9, default 0.2.
+    pub augmentation_fraction: f32,
+    /// Inertia gradient mode; default `ours`.
+    pub inertia_mode: InertiaMode,
+    /// Compute backend; default `cpu`.
+    pub backend: BackendKind,
+    /// Seed of every random choice (initialisation, sampling); default 0.
+    pub seed: u64,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            batch_size: 16,
+            window_secs: 0.5,
+            fps: 30.0,
+            learning_rate: 1e-3,
+            max_steps: None,
+            max_minutes: None,
+            validate_every: 50,
+            snapshot_every: 10,
+            checkpoint_every: 200,
+            mirror_poses: true,
+            augmentation_fraction: 0.2,
+            inertia_mode: InertiaMode::Ours,
+            backend: BackendKind::Cpu,
+            seed: 0,
+        }
+    }
+}
+
+/// A configuration value outside its documented range.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("training setting `{field}` = {value} is outside {range}")]
+pub struct ConfigError {
+    /// Field name.
+    pub field: &'static str,
+    /// Offending value, formatted.
+    pub value: String,
+    /// Allowed range, formatted.
+    pub range: &'static str,
+}
+
+impl TrainConfig {
+    /// Frames per training window: `ceil(window_secs * fps) + 3` (the last 3 are predicted).
+    pub fn window_frames(&self) -> usize {
+        (self.window_secs * self.fps).ceil().max(0.0) as usize + 3
+    }
+
+    /// Time step between frames in seconds.
+    pub fn dt_secs(&self) -> f32 {
+        1.0 / self.fps
+    }
+
+    /// Checks every field against its documented range.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        fn check(ok: bool, field: &'static str, value: impl ToString, range: &'static str) -> Result<(), ConfigError> {
+            if ok { Ok(()) } else { Err(ConfigError { field, value: value.to_string(), range }) }
+        }
+        check((1..=256).contains(&self.batch_size), "batch_size", self.batch_size, "1..=256")?;
+        check((0.05..=4.0).contains(&self.window_secs), "window_secs", self.window_secs, "0.05..=4 s")?;
+        check((5.0..=240.0).contains(&self.fps), "fps", self.fps, "5..=240")?;
+        check(self.learning_rate > 0.0 && self.learning_rate <= 1.0, "learning_rate", self.learning_rate, "(0, 1]")?;
+        check(self.validate_every >= 1, "validate_every", self.validate_every, ">= 1")?;
+        check(self.snapshot_every >= 1, "snapshot_every", self.snapshot_every, ">= 1")?;
+        check(self.checkpoint_every >= 1, "checkpoint_every", self.checkpoint_every, ">= 1")?;
+        check((0.0..=0.9).contains(&self.augmentation_fraction), "augmentation_fraction", self.augmentation_fraction, "0..=0.9")?;
+        if let Some(m) = self.max_minutes {
+            check(m.is_finite() && m > 0.0, "max_minutes", m, "> 0")?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn window_frames_follow_the_paper() {
+        let c = TrainConfig::default();
+        assert_eq!(c.window_frames(), 15 + 3);
+        let c = TrainConfig { window_secs: 0.1, fps: 60.0, ..Default::default() };
+        assert_eq!(c.window_frames(), 6 + 3);
+    }
+
+    #[test]
+    fn validation_names_the_field() {
+        assert!(TrainConfig::default().validate().is_ok());
+        let e = TrainConfig { window_secs: 0.0, ..Default::default() }.validate().unwrap_err();
+        assert_eq!(e.field, "window_secs");
+        let e = TrainConfig { batch_size: 0, ..Default::default() }.validate().unwrap_err();
+        assert_eq!(e.field, "batch_size");
+    }
+
+    #[test]
+    fn round_trips_through_toml() {
+        let c = TrainConfig { batch_size: 8, inertia_mode: InertiaMode::Snug, ..Default::default() };
+        let text = toml::to_string(&c).unwrap();
+        assert_eq!(toml::from_str::<TrainConfig>(&text).unwrap(), c);
+    }
+}

@@ -1,0 +1,183 @@
+//! Training data: the scene's motions resampled to the training rate, turned into descriptors
+//! and garment skinning matrices once, then sampled as batches of temporal windows.
+
+use std::sync::{Arc, OnceLock};
+
+use rand::RngExt;
+use rand::rngs::StdRng;
+
+use crate::model::{DescriptorConfig, DescriptorExtractor, Descriptors, SkinMatrixBuilder};
+use crate::physics::PosedBody;
+use crate::scene::config::Split;
+use crate::scene::{Avatar, Motion, Pose};
+
+use super::TrainError;
+
+/// Floats per garment skinning matrix (3x4).
+const MAT: usize = 12;
+
+/// One motion prepared for training.
+pub struct MotionData {
+    /// Name (mirrored copies end in "(mirrored)").
+    pub name: String,
+    /// Poses at the training rate.
+    pub poses: Vec<Pose>,
+    /// Descriptors of every frame.
+    pub descriptors: Descriptors,
+    /// Garment skinning matrices `[T, J_all, 12]`.
+    pub matrices: Vec<f32>,
+    /// Posed bodies, built on first use (collision queries).
+    bodies: Vec<OnceLock<Arc<PosedBody>>>,
+}
+
+impl MotionData {
+    /// Number of frames.
+    pub fn frames(&self) -> usize {
+        self.poses.len()
+    }
+}
+
+/// The motions of one split.
+pub struct Dataset {
+    /// Prepared motions.
+    pub motions: Vec<MotionData>,
+    /// Input joints `J` of the descriptors.
+    pub input_joints: usize,
+    /// Skeleton joints `J_all` of the matrices.
+    pub skeleton_joints: usize,
+}
+
+/// A batch of windows, flat and ready to become tensors.
+#[derive(Clone, Debug, Default)]
+pub struct Batch {
+    /// Windows in the batch.
+    pub size: usize,
+    /// Frames per window `T`.
+    pub frames: usize,
+    /// Static descriptors `[B, T, J, 9]`.
+    pub static_desc: Vec<f32>,
+    /// Dynamic descriptors `[B, T, J, 12]`.
+    pub dynamic_desc: Vec<f32>,
+    /// Garment matrices of the last 3 frames `[B, 3, J_all, 12]`.
+    pub matrices: Vec<f32>,
+    /// `(motion, last frame)` of each window.
+    pub windows: Vec<(usize, usize)>,
+}
+
+impl Dataset {
+    /// Prepares `motions` of `split` (plus left/right mirrors when `mirror`) at `fps`.
+    pub fn new(
+        avatar: &Avatar,
+        motions: &[(Motion, Split)],
+        split: Split,
+        fps: f32,
+        descriptor_config: &DescriptorConfig,
+        mirror: bool,
+    ) -> Result<Self, TrainError> {
+        let mut extractor = DescriptorExtractor::new(&avatar.skeleton, descriptor_config, fps)?;
+        let mut builder = SkinMatrixBuilder::new(&avatar.skeleton);
+        let mut out = Vec::new();
+        for (motion, s) in motions {
+            if *s != split {
+                continue;
+            }
+            let resampled = motion.resample(fps).map_err(crate::model::ModelError::from)?;
+            let mut variants = vec![resampled.clone()];
+            if mirror {
+                variants.push(resampled.mirrored(&avatar.skeleton));
+            }
+            for m in variants {
+                let descriptors = extractor.motion(&m)?;
+                let mut matrices = Vec::with_capacity(m.frames.len() * builder.joint_count() * MAT);
+                for pose in &m.frames {
+                    builder.append(pose, &mut matrices)?;
+                }
+                let bodies = (0..m.frames.len()).map(|_| OnceLock::new()).collect();
+                out.push(MotionData { name: m.name.clone(), poses: m.frames, descriptors, matrices, bodies });
+            }
+        }
+        Ok(Self { motions: out, input_joints: extractor.joint_count(), skeleton_joints: builder.joint_count() })
+    }
+
+    /// True when the split has no frames.
+    pub fn is_empty(&self) -> bool {
+        self.motions.iter().all(|m| m.frames() == 0)
+    }
+
+    /// Total frames over all motions.
+    pub fn total_frames(&self) -> usize {
+        self.motions.iter().map(|m| m.frames()).sum()
+    }
+
+    /// Draws `size` windows uniformly over all frames of all motions.
+    pub fn sample_windows(&self, size: usize, rng: &mut StdRng) -> Vec<(usize, usize)> {
+        let total = self.total_frames().max(1);
+        (0..size)
+            .map(|_| {
+                let mut k = rng.random_range(0..total);
+                for (i, m) in self.motions.iter().enumerate() {
+                    if k < m.frames() {
+                        return (i, k);
+                    }
+                    k -= m.frames();
+                }
+                (0, 0)
+            })
+            .collect()
+    }
+
+    /// `count` windows spread evenly over every motion (deterministic; used for validation).
+    pub fn even_windows(&self, count: usize) -> Vec<(usize, usize)> {
+        let total = self.total_frames();
+        if total == 0 {
+            return Vec::new();
+        }
+        let step = (total as f64 / count.max(1) as f64).max(1.0);
+        let mut out = Vec::new();
+        let mut k = 0.0f64;
+        while (k as usize) < total && out.len() < count {
+            let mut f = k as usize;
+            for (i, m) in self.motions.iter().enumerate() {
+                if f < m.frames() {
+                    out.push((i, f));
+                    break;
+                }
+                f -= m.frames();
+            }
+            k += step;
+        }
+        out
+    }
+
+    /// Assembles the windows of `frames` frames ending at each `(motion, last)`.
+    pub fn batch(&self, windows: &[(usize, usize)], frames: usize) -> Batch {
+        let j_all = self.skeleton_joints;
+        let mut b = Batch { size: windows.len(), frames, windows: windows.to_vec(), ..Default::default() };
+        for &(mi, last) in windows {
+            let Some(m) = self.motions.get(mi) else { continue };
+            m.descriptors.append_window(last, frames, &mut b.static_desc, &mut b.dynamic_desc);
+            for back in (0..3).rev() {
+                let f = last.saturating_sub(back).min(m.frames().saturating_sub(1));
+                let start = f * j_all * MAT;
+                if let Some(block) = m.matrices.get(start..start + j_all * MAT) {
+                    b.matrices.extend_from_slice(block);
+                }
+            }
+        }
+        b
+    }
+
+    /// The posed body of `(motion, frame)`, built once and cached.
+    pub fn body(&self, avatar: &Avatar, motion: usize, frame: usize) -> Result<Arc<PosedBody>, TrainError> {
+        let m = self.motions.get(motion).ok_or_else(|| TrainError::Data(format!("no motion {motion}")))?;
+        let f = frame.min(m.frames().saturating_sub(1));
+        let Some(cell) = m.bodies.get(f) else {
+            return Err(TrainError::Data(format!("motion '{}' has no frame {f}", m.name)));
+        };
+        if let Some(b) = cell.get() {
+            return Ok(b.clone());
+        }
+        let body = Arc::new(PosedBody::from_avatar(avatar, &m.poses[f])?);
+        Ok(cell.get_or_init(|| body).clone())
+    }
+}

@@ -1,0 +1,67 @@
+//! Metric records and their history over a run (train and validation), shared by the CLI
+//! progress bar, the checkpoint files and the app's curves.
+
+use serde::{Deserialize, Serialize};
+
+/// The paper's §4.2 metrics plus the total loss, at one moment of training.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MetricRecord {
+    /// Optimiser step.
+    pub step: u64,
+    /// Seconds of training wall-clock time since the run started (pauses excluded).
+    pub wall_secs: f64,
+    /// Total loss (sum of the weighted terms).
+    pub loss: f64,
+    /// Cloth in-plane term: mean edge elongation or strain (unitless).
+    pub strain: f64,
+    /// Mean absolute dihedral error against rest, radians.
+    pub bending: f64,
+    /// Percentage of garment vertices inside the body, 0..=100.
+    pub collision_pct: f64,
+    /// Gravity potential energy per garment, joules.
+    pub gravity: f64,
+    /// Inertia term per garment, joules.
+    pub inertia: f64,
+}
+
+impl MetricRecord {
+    /// True when every value is finite.
+    pub fn is_finite(&self) -> bool {
+        [self.wall_secs, self.loss, self.strain, self.bending, self.collision_pct, self.gravity, self.inertia]
+            .iter()
+            .all(|v| v.is_finite())
+    }
+
+    /// `(name, value)` pairs of the §4.2 metrics, in display order.
+    pub fn named(&self) -> [(&'static str, f64); 5] {
+        [
+            ("strain", self.strain),
+            ("bending", self.bending),
+            ("collision %", self.collision_pct),
+            ("gravity", self.gravity),
+            ("inertia", self.inertia),
+        ]
+    }
+}
+
+/// All metric records of a run.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MetricHistory {
+    /// One record per training step (or per logged step).
+    pub train: Vec<MetricRecord>,
+    /// One record per validation pass.
+    pub validation: Vec<MetricRecord>,
+}
+
+impl MetricHistory {
+    /// The step of the last training record, or 0.
+    pub fn last_step(&self) -> u64 {
+        self.train.last().map(|r| r.step).unwrap_or(0)
+    }
+
+    /// Drops every record after `step` (used when rolling back to a checkpoint).
+    pub fn truncate_after(&mut self, step: u64) {
+        self.train.retain(|r| r.step <= step);
+        self.validation.retain(|r| r.step <= step);
+    }
+}

@@ -1,0 +1,296 @@
+//! The neural training session: model, optimiser, data and physics of one run, stepped by the
+//! trainer thread ([`super::handle`]).
+//!
+//! One step (paper §3.4, §4.1): sample `B` windows of `ceil(window·fps)+3` frames, encode
+//! them, decode the last 3 frames and skin them; static losses on the last frame; inertia of
+//! `x_t` against the stop-gradient projection `2x_{t-1} - x_{t-2}` (or, in `snug` mode, with
+//! gradients into the past frames); motion augmentation replaces the dynamic code of a
+//! fraction of the batch by another sample's (encoders detached, static losses only); Adam.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use burn::module::Module;
+use burn::optim::{AdamConfig, GradientsParams};
+use burn::optim::ModuleOptimizer;
+use burn::tensor::{Bytes, Device, Int, Tensor, TensorData};
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand::seq::SliceRandom;
+
+use crate::model::{ClothNet, GarmentLbs, InferenceWeights};
+use crate::physics::metrics::History;
+use crate::physics::{BodyBatch, ClothMetrics, ClothModel, FabricParams, PhysicsTerms};
+use crate::scene::{Avatar, Garment};
+
+use super::TrainError;
+use super::config::{InertiaMode, TrainConfig};
+use super::data::{Batch, Dataset};
+use super::handle::Session;
+use super::metrics::{MetricHistory, MetricRecord};
+use super::run_dir::{CheckpointState, RunDir};
+
+/// Validation windows per pass.
+pub const VALIDATION_WINDOWS: usize = 32;
+
+/// Everything one run trains with.
+pub struct NeuralSession {
+    device: Device,
+    model: ClothNet,
+    optim: ModuleOptimizer,
+    learning_rate: f64,
+    config: TrainConfig,
+    terms: PhysicsTerms,
+    lbs: GarmentLbs,
+    avatar: Arc<Avatar>,
+    garment: Arc<Garment>,
+    train: Dataset,
+    validation: Dataset,
+    rng: StdRng,
+    run: RunDir,
+}
+
+/// The parts a session is built from.
+pub struct SessionParts {
+    /// Autodiff device.
+    pub device: Device,
+    /// Initial (or restored) network.
+    pub model: ClothNet,
+    /// Training settings.
+    pub config: TrainConfig,
+    /// Physics terms of the garment.
+    pub terms: PhysicsTerms,
+    /// Garment skinning.
+    pub lbs: GarmentLbs,
+    /// The avatar (bodies for collisions).
+    pub avatar: Arc<Avatar>,
+    /// The garment (physics rebuilt from it when the fabric changes).
+    pub garment: Arc<Garment>,
+    /// Training data.
+    pub train: Dataset,
+    /// Validation data (may be empty: then the training motions validate).
+    pub validation: Dataset,
+    /// Run directory.
+    pub run: RunDir,
+}
+
+impl NeuralSession {
+    /// Assembles a session with a fresh Adam optimiser.
+    pub fn new(parts: SessionParts) -> Self {
+        let optim = AdamConfig::new().init();
+        let seed = parts.config.seed;
+        Self {
+            device: parts.device,
+            model: parts.model,
+            optim,
+            learning_rate: parts.config.learning_rate,
+            config: parts.config,
+            terms: parts.terms,
+            lbs: parts.lbs,
+            avatar: parts.avatar,
+            garment: parts.garment,
+            train: parts.train,
+            validation: parts.validation,
+            rng: StdRng::seed_from_u64(seed ^ 0x5eed),
+            run: parts.run,
+        }
+    }
+
+    /// Restores model, optimiser and learning rate from checkpoint `step`.
+    pub fn load_checkpoint(&mut self, step: u64) -> Result<CheckpointState, TrainError> {
+        let (model_bytes, optim_bytes, state) = self.run.read_checkpoint(step)?;
+        let record = burn::store::ModuleRecord::from_bytes(Bytes::from_bytes_vec(model_bytes)).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+        self.model = self.model.clone().try_load_record(record).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+        self.optim = AdamConfig::new()
+            .init()
+            .from_bytes(Bytes::from_bytes_vec(optim_bytes))
+            .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+        self.learning_rate = state.learning_rate;
+        Ok(state)
+    }
+
+    /// The current network.
+    pub fn model(&self) -> &ClothNet {
+        &self.model
+    }
+
+    /// The run directory.
+    pub fn run_dir(&self) -> &RunDir {
+        &self.run
+    }
+
+    fn tensor4(&self, data: Vec<f32>, shape: [usize; 4]) -> Tensor<4> {
+        Tensor::from_data(TensorData::new(data, shape), &self.device)
+    }
+
+    /// Posed garment `[B, 3, V, 3]` of the last three frames of `batch`, with `augment` samples
+    /// (the last ones) given another sample's dynamic code and detached encoders.
+    fn predict(&mut self, batch: &Batch, augment: usize) -> Tensor<4> {
+        let (b, t) = (batch.size, batch.frames);
+        let j = self.train.input_joints;
+        let statics = self.tensor4(batch.static_desc.clone(), [b, t, j, 9]);
+        let dynamics = (self.model.kind() != crate::model::EncoderKind::StaticOnly).then(|| self.tensor4(batch.dynamic_desc.clone(), [b, t, j, 12]));
+        let offsets = if augment == 0 || !self.model.has_dynamic_branch() {
+            self.model.forward_last(statics, dynamics, 1.0, 3)
+        } else {
+            let (z_s, z_d) = self.model.encode_last(statics, dynamics, 3);
+            let z = match z_d {
+                Some(z_d) => {
+                    let kept = b - augment;
+                    let mut perm: Vec<i64> = (0..b as i64).collect();
+                    perm.shuffle(&mut self.rng);
+                    let picks = Tensor::<1, Int>::from_data(TensorData::new(perm[..augment].to_vec(), [augment]), &self.device);
+                    let normal = z_s.clone().narrow(0, 0, kept) + z_d.clone().narrow(0, 0, kept);
+                    let shuffled = z_s.narrow(0, kept, augment).detach() + z_d.select(0, picks).detach();
+                    Tensor::cat(vec![normal, shuffled], 0)
+                }
+                None => z_s,
+            };
+            self.model.decode(z)
+        };
+        let matrices = self.tensor4(batch.matrices.clone(), [b, 3, self.train.skeleton_joints, 12]);
+        self.lbs.pose(offsets, matrices)
+    }
+
+    fn bodies(&self, data: &Dataset, batch: &Batch) -> Result<Option<BodyBatch>, TrainError> {
+        if !self.terms.effects().collision {
+            return Ok(None);
+        }
+        let bodies = batch.windows.iter().map(|&(m, f)| data.body(&self.avatar, m, f)).collect::<Result<Vec<_>, _>>()?;
+        Ok(Some(BodyBatch::new(bodies)))
+    }
+
+    fn record(&self, metrics: &ClothMetrics, loss: f64) -> MetricRecord {
+        let strain = match self.terms.fabric().cloth_model {
+            ClothModel::MassSpring => metrics.edge_strain.abs(),
+            ClothModel::BaraffWitkin => metrics.stretch,
+            ClothModel::Stvk => metrics.green_strain,
+        };
+        MetricRecord {
+            loss,
+            strain,
+            bending: metrics.bending_rad,
+            collision_pct: metrics.collision_pct.unwrap_or(0.0),
+            gravity: metrics.gravity_j,
+            inertia: metrics.inertia_j.unwrap_or(0.0),
+            ..Default::default()
+        }
+    }
+
+    /// Frames of the configured window.
+    fn window_frames(&self) -> usize {
+        self.config.window_frames()
+    }
+}
+
+/// `x[:, k]` as `[B, V, 3]`.
+fn frame(x: &Tensor<4>, k: usize) -> Tensor<3> {
+    let [b, _, v, c] = x.dims();
+    x.clone().narrow(1, k, 1).reshape([b, v, c])
+}
+
+impl Session for NeuralSession {
+    fn step(&mut self) -> Result<MetricRecord, String> {
+        let b = self.config.batch_size;
+        let windows = self.train.sample_windows(b, &mut self.rng);
+        let batch = self.train.batch(&windows, self.window_frames());
+        let augment = if self.terms.effects().dynamics && b >= 2 {
+            ((self.config.augmentation_fraction * b as f32).round() as usize).min(b - 1)
+        } else {
+            0
+        };
+        let x = self.predict(&batch, augment);
+        let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
+        let bodies = self.bodies(&self.train, &batch).map_err(|e| e.to_string())?;
+        let contacts = match &bodies {
+            Some(bodies) => Some(self.terms.contacts(&x_t, bodies).map_err(|e| e.to_string())?),
+            None => None,
+        };
+        let losses = self.terms.static_losses_with(&x_t, contacts.as_ref()).map_err(|e| e.to_string())?;
+        let mut total = losses.total().unwrap_or_else(|| Tensor::zeros([1], &self.device));
+        if self.terms.effects().dynamics {
+            let kept = b - augment;
+            let (xt, xt1, xt2) = (x_t.clone().narrow(0, 0, kept), x_t1.clone().narrow(0, 0, kept), x_t2.clone().narrow(0, 0, kept));
+            let inertia = match self.config.inertia_mode {
+                InertiaMode::Ours => self.terms.inertia(&xt, &xt1, &xt2, self.config.dt_secs()),
+                InertiaMode::Snug => super::losses::inertia_through_past(&self.terms, &xt, &xt1, &xt2, self.config.dt_secs()),
+            };
+            if let Some(inertia) = inertia {
+                total = total + inertia;
+            }
+        }
+        let loss = total.clone().into_scalar::<f64>();
+        let grads = total.backward();
+        let grads = GradientsParams::from_grads(grads, &self.model);
+        self.model = self.optim.step(self.learning_rate, self.model.clone(), grads);
+        let history = History { x_t1: x_t1.detach(), x_t2: x_t2.detach(), dt_secs: self.config.dt_secs() };
+        let metrics = self.terms.metrics(&x_t.detach(), contacts.as_ref(), Some(&history)).map_err(|e| e.to_string())?;
+        Ok(self.record(&metrics, loss))
+    }
+
+    fn validate(&mut self) -> Result<MetricRecord, String> {
+        let data = if self.validation.is_empty() { &self.train } else { &self.validation };
+        let windows = data.even_windows(VALIDATION_WINDOWS);
+        if windows.is_empty() {
+            return Err("no validation frames".into());
+        }
+        let batch = data.batch(&windows, self.window_frames());
+        let bodies = self.bodies(data, &batch).map_err(|e| e.to_string())?;
+        let x = self.predict(&batch, 0).detach();
+        let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
+        let contacts = match &bodies {
+            Some(bodies) => Some(self.terms.contacts(&x_t, bodies).map_err(|e| e.to_string())?),
+            None => None,
+        };
+        let losses = self.terms.static_losses_with(&x_t, contacts.as_ref()).map_err(|e| e.to_string())?;
+        let mut loss = losses.total().map(|t| t.into_scalar::<f64>()).unwrap_or(0.0);
+        if let Some(i) = self.terms.inertia(&x_t, &x_t1, &x_t2, self.config.dt_secs()) {
+            loss += i.into_scalar::<f64>();
+        }
+        let history = History { x_t1, x_t2, dt_secs: self.config.dt_secs() };
+        let metrics = self.terms.metrics(&x_t, contacts.as_ref(), Some(&history)).map_err(|e| e.to_string())?;
+        Ok(self.record(&metrics, loss))
+    }
+
+    fn weights_finite(&self) -> bool {
+        InferenceWeights::from_module(&self.model).map(|w| w.validate().is_ok()).unwrap_or(false)
+    }
+
+    fn snapshot(&self) -> Result<InferenceWeights, String> {
+        InferenceWeights::from_module(&self.model).map_err(|e| e.to_string())
+    }
+
+    fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, String> {
+        let model_bytes = self.model.clone().into_record().into_bytes().map_err(|e| e.to_string())?;
+        let optim_bytes = self.optim.into_bytes().map_err(|e| e.to_string())?;
+        let state = CheckpointState { step, learning_rate: self.learning_rate };
+        self.run.write_checkpoint(state, &model_bytes, &optim_bytes, history).map_err(|e| e.to_string())
+    }
+
+    fn restore_last_checkpoint(&mut self) -> Result<u64, String> {
+        let step = self.run.latest_step().ok_or("no checkpoint written yet")?;
+        self.load_checkpoint(step).map_err(|e| e.to_string())?;
+        Ok(step)
+    }
+
+    fn learning_rate(&self) -> f64 {
+        self.learning_rate
+    }
+
+    fn set_learning_rate(&mut self, lr: f64) {
+        self.learning_rate = lr;
+    }
+
+    fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), String> {
+        let effects = *self.terms.effects();
+        self.terms = PhysicsTerms::new(&self.garment, &fabric, &effects, &self.device).map_err(|e| e.to_string())?;
+        Ok(())
+    }
+
+    fn set_window(&mut self, window_secs: f32) -> Result<(), String> {
+        let next = TrainConfig { window_secs, ..self.config.clone() };
+        next.validate().map_err(|e| e.to_string())?;
+        self.config = next;
+        Ok(())
+    }
+}

@@ -1,0 +1,69 @@
+//! The reference simulator on the built-in scene: drape the default t-shirt on the still
+//! mannequin, spin with a skirt.
+
+use std::sync::Arc;
+
+use burn::tensor::Device;
+use neural_cloth::geometry::Vec3;
+use neural_cloth::physics::metrics::sequence_metrics;
+use neural_cloth::physics::simulator::{SimOptions, simulate};
+use neural_cloth::physics::{FabricParams, PhysicsTerms, PosedBody};
+use neural_cloth::scene::Motion;
+use neural_cloth::scene::procedural::{GarmentKind, MotionKind, builtin_garment, builtin_motion, default_scene, mannequin};
+
+#[test]
+fn reference_simulator_drapes_the_default_tshirt_on_the_still_mannequin() {
+    let scene = default_scene().unwrap();
+    let fabric = FabricParams::from_table(&scene.fabric).unwrap();
+    let device = Device::flex();
+    let pose = scene.avatar.skeleton.rest_pose();
+    let fps = 30.0;
+    let motion = Motion::still("still", pose.clone(), fps, 31);
+    let options = SimOptions { iterations_per_step: 25, ..SimOptions::default() };
+    let sim = simulate(&scene.avatar, &scene.garment, &fabric, &scene.effects, &motion, fps, &options, &device, &mut |_| true).unwrap();
+    assert_eq!(sim.frames.len(), 31);
+    let terms = PhysicsTerms::new(&scene.garment, &fabric, &scene.effects, &device).unwrap();
+    let body = Arc::new(PosedBody::from_avatar(&scene.avatar, &pose).unwrap());
+    let bodies = vec![body; sim.frames.len()];
+    let m = sequence_metrics(&terms, &sim.frames, Some(&bodies), 1.0 / fps).unwrap();
+    let gravity: Vec<f64> = m.iter().map(|m| m.gravity_j).collect();
+    let (first, last) = (gravity[0], gravity[gravity.len() - 1]);
+    let late_change = (last - gravity[gravity.len() - 6]).abs();
+    eprintln!("t-shirt drape: gravity {first:.5} -> {last:.5} J, last 5 frames {late_change:.2e} J, inside {:?} %", m.last().and_then(|m| m.collision_pct));
+    assert!(last < first, "the t-shirt should settle downwards: {gravity:?}");
+    assert!(late_change < 0.05 * (first - last), "gravity energy has not plateaued: {gravity:?}");
+    let inside = m.last().and_then(|m| m.collision_pct).unwrap();
+    assert!(inside < 0.5, "{inside} % of vertices inside the body");
+    assert!(sim.reports.iter().all(|r| r.residual.is_finite() && r.objective_j.is_finite()));
+}
+
+#[test]
+fn reference_simulator_spins_a_skirt_open() {
+    let avatar = mannequin().unwrap();
+    let skirt = builtin_garment(&avatar, GarmentKind::Skirt, 1200, None).unwrap();
+    let fabric = FabricParams::default();
+    let effects = neural_cloth::physics::Effects::default();
+    let device = Device::flex();
+    let fps = 30.0;
+    let spin = builtin_motion(MotionKind::Spin, fps, 1.5, None).unwrap();
+    let still = Motion::still("still", spin.frames[0].clone(), fps, spin.frames.len());
+    let options = SimOptions { iterations_per_step: 20, settle_secs: 0.3, ..SimOptions::default() };
+    let run = |m: &Motion| simulate(&avatar, &skirt, &fabric, &effects, m, fps, &options, &device, &mut |_| true).unwrap();
+    let (spun, rested) = (run(&spin), run(&still));
+    // Hem: the lowest fifth of the template; radius about the spin axis through the root.
+    let mut heights: Vec<f32> = skirt.mesh.positions.iter().map(|p| p.y).collect();
+    heights.sort_by(f32::total_cmp);
+    let cut = heights[heights.len() / 5];
+    let hem: Vec<usize> = (0..skirt.vertex_count()).filter(|&i| skirt.mesh.positions[i].y <= cut).collect();
+    let radius = |frame: &[Vec3], k: usize, motion: &Motion| {
+        let axis = avatar.skeleton.joint_positions(&motion.frames[k.min(motion.frames.len() - 1)])[0];
+        hem.iter().map(|&i| (frame[i] - axis).xz().norm()).sum::<f32>() / hem.len() as f32
+    };
+    let n = spun.frames.len();
+    let avg = |sim: &neural_cloth::physics::Simulation, m: &Motion| (n - 10..n).map(|k| radius(&sim.frames[k], k, m)).sum::<f32>() / 10.0;
+    let (open, closed) = (avg(&spun, &spin), avg(&rested, &still));
+    eprintln!("skirt hem radius: still {closed:.4} m, spinning {open:.4} m");
+    assert!(open > 1.1 * closed, "the spinning skirt should open outwards: {open} vs {closed}");
+    let highest = |sim: &neural_cloth::physics::Simulation| hem.iter().map(|&i| sim.frames[n - 1][i].y).sum::<f32>() / hem.len() as f32;
+    assert!(highest(&spun) > highest(&rested), "a spinning skirt rises against gravity");
+}
