@@ -10,5 +10,6 @@ pub mod io;
 pub mod physics;
 pub mod model;
 pub mod train;
+pub mod bake;
 pub mod render;
 pub mod app;

@@ -1,6 +1,7 @@
 //! Argument parsing and dispatch of the subcommands. Each subcommand lives in its own file
 //! and calls into the library; this layer only parses, reports progress and prints.
 
+mod bake;
 mod inspect;
 mod train;
 
@@ -30,6 +31,10 @@ pub enum Command {
     },
     /// Train a model on a scene headless (default: the built-in scene).
     Train(train::TrainArgs),
+    /// Bake a motion with a trained model into PC2, MDD, OBJ sequence or glTF.
+    Bake(bake::BakeArgs),
+    /// Bake a motion with the reference simulator (the paper's Eq. 8 baseline).
+    Simulate(bake::SimulateArgs),
 }
 
 /// Runs the parsed command line.
@@ -38,5 +43,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         None => neural_cloth::app::run_app(neural_cloth::app::AppOptions { project: cli.project, ..Default::default() }),
         Some(Command::Inspect { file }) => inspect::run(&file),
         Some(Command::Train(args)) => train::run(args),
+        Some(Command::Bake(args)) => bake::run(args),
+        Some(Command::Simulate(args)) => bake::simulate(args),
     }
 }
