@@ -1,0 +1,321 @@
+//! End-to-end tests of training, checkpoints, baking and the CLI on a tiny built-in scene.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Arc;
+use std::time::Duration;
+
+use burn::tensor::{Tensor, TensorData};
+use neural_cloth::bake::{BakeFormat, BakeOptions, ModelSource, bake};
+use neural_cloth::io::export::{read_mdd, read_pc2};
+use neural_cloth::model::{ClothNetConfig, DescriptorConfig, InferenceEngine, InferenceOptions};
+use neural_cloth::physics::{FabricParams, PhysicsTerms};
+use neural_cloth::scene::Scene;
+use neural_cloth::scene::config::SceneConfig;
+use neural_cloth::scene::procedural::build_builtin;
+use neural_cloth::train::handle::{LoopConfig, Session};
+use neural_cloth::train::losses::inertia_through_past;
+use neural_cloth::train::metrics::{MetricHistory, MetricRecord};
+use neural_cloth::train::{RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer, TrainerHandle, load_trained, prepare};
+
+const TINY: &str = r#"
+name = "tiny"
+training_fps = 30.0
+[avatar]
+builtin = "mannequin"
+[garment]
+builtin = "tshirt"
+resolution = 400
+[[motions]]
+builtin = "walk"
+duration_secs = 1.0
+[[motions]]
+builtin = "spin"
+duration_secs = 1.0
+[[motions]]
+builtin = "turn"
+duration_secs = 1.0
+split = "validation"
+[fabric]
+preset = "default"
+"#;
+
+fn tiny() -> (Scene, SceneConfig) {
+    let config = SceneConfig::from_toml_str(TINY).unwrap();
+    (build_builtin(&config).unwrap(), config)
+}
+
+/// A small network so the tests run in seconds.
+fn small_model() -> ClothNetConfig {
+    ClothNetConfig {
+        static_hidden: vec![32, 32],
+        joint_hidden: vec![16],
+        dynamic_hidden: vec![64],
+        latent: 64,
+        decoder_hidden: vec![64, 64],
+        ..Default::default()
+    }
+}
+
+fn setup(dir: &Path, train: TrainConfig, location: Option<RunLocation>) -> TrainSetup {
+    let (scene, scene_config) = tiny();
+    TrainSetup {
+        scene,
+        scene_config,
+        train,
+        model: small_model(),
+        descriptors: DescriptorConfig::default(),
+        fabric: None,
+        location: location.unwrap_or_else(|| RunLocation::At(dir.to_path_buf())),
+    }
+}
+
+fn quick_config() -> TrainConfig {
+    TrainConfig { batch_size: 4, window_secs: 0.2, seed: 7, learning_rate: 1e-3, ..Default::default() }
+}
+
+fn run_to_end(handle: TrainerHandle) -> (Vec<TrainEvent>, Result<neural_cloth::train::RunSummary, String>) {
+    let mut events = Vec::new();
+    loop {
+        match handle.recv_timeout(Duration::from_secs(120)) {
+            Some(TrainEvent::Finished(result)) => return (events, result),
+            Some(e) => events.push(e),
+            None => panic!("trainer went silent; events so far: {}", events.len()),
+        }
+    }
+}
+
+#[test]
+fn training_lowers_the_loss_and_collisions() {
+    let dir = tempfile::tempdir().unwrap();
+    // A large basis initialisation: the untrained garment crumples into the body.
+    let mut s = setup(dir.path(), quick_config(), None);
+    s.model.basis_init_gain = 30.0;
+    let (mut session, _) = prepare(s).unwrap();
+    let before = session.validate().unwrap();
+    eprintln!("before {before:?}");
+    assert!(before.is_finite());
+    for _ in 0..60 {
+        let r = session.step().unwrap();
+        assert!(r.is_finite(), "{r:?}");
+    }
+    let after = session.validate().unwrap();
+    eprintln!("after {after:?}");
+    assert!(after.is_finite(), "{after:?}");
+    assert!(after.loss < before.loss, "loss {} -> {}", before.loss, after.loss);
+    assert!(
+        after.collision_pct < before.collision_pct || (before.collision_pct == 0.0 && after.collision_pct == 0.0),
+        "collision {}% -> {}%",
+        before.collision_pct,
+        after.collision_pct
+    );
+    assert!(before.collision_pct > 0.0, "the random initial model should put some vertices inside the body");
+}
+
+#[test]
+fn inertia_gradient_reaches_only_the_current_frame_unless_snug() {
+    let (scene, _) = tiny();
+    let device = neural_cloth::train::device_for(neural_cloth::train::BackendKind::Cpu, true);
+    let fabric = FabricParams::from_table(&scene.fabric).unwrap();
+    let terms = PhysicsTerms::new(&scene.garment, &fabric, &scene.effects, &device).unwrap();
+    let v = scene.garment.vertex_count();
+    let base: Vec<f32> = scene.garment.mesh.positions.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
+    let make = |shift: f32| {
+        let data: Vec<f32> = base.iter().enumerate().map(|(i, x)| x + shift * ((i % 7) as f32 - 3.0) * 1e-3).collect();
+        Tensor::<3>::from_data(TensorData::new(data, [1, v, 3]), &device).require_grad()
+    };
+    for snug in [false, true] {
+        let (x_t, x_t1, x_t2) = (make(1.0), make(0.5), make(0.0));
+        let loss = if snug {
+            inertia_through_past(&terms, &x_t, &x_t1, &x_t2, 1.0 / 30.0).unwrap()
+        } else {
+            terms.inertia(&x_t, &x_t1, &x_t2, 1.0 / 30.0).unwrap()
+        };
+        let grads = loss.backward();
+        let norm = |t: &Tensor<3>| t.grad(&grads).map(|g| g.abs().sum().into_scalar::<f32>()).unwrap_or(0.0);
+        assert!(norm(&x_t) > 0.0);
+        if snug {
+            assert!(norm(&x_t1) > 0.0 && norm(&x_t2) > 0.0, "snug mode must reach the past frames");
+        } else {
+            assert_eq!((norm(&x_t1), norm(&x_t2)), (0.0, 0.0), "ours must stop the gradient at the past frames");
+        }
+    }
+}
+
+#[test]
+fn checkpoints_reload_identically_and_resume_continues() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let config = TrainConfig { max_steps: Some(6), checkpoint_every: 3, validate_every: 3, snapshot_every: 2, ..quick_config() };
+    let (events, result) = run_to_end(Trainer::spawn(setup(&run, config.clone(), None), None).unwrap());
+    let summary = result.unwrap();
+    assert_eq!(summary.steps, 6);
+    let snapshot = events
+        .iter()
+        .rev()
+        .find_map(|e| match e {
+            TrainEvent::Snapshot { step: 6, weights } => Some(weights.clone()),
+            _ => None,
+        })
+        .expect("a final snapshot");
+    assert!(events.iter().any(|e| matches!(e, TrainEvent::Checkpoint { step: 3, .. })));
+
+    // The checkpoint reloads to exactly the weights the trainer had.
+    let trained = load_trained(&run).unwrap();
+    assert_eq!(trained.step, 6);
+    assert_eq!(trained.weights, *snapshot);
+    let predict = |weights: neural_cloth::model::InferenceWeights| {
+        let mut engine = InferenceEngine::from_scene(weights, &trained.scene.avatar, &trained.scene.garment, &DescriptorConfig::default(), 30.0, InferenceOptions::default()).unwrap();
+        let motion = &trained.scene.motions[0].0;
+        for pose in motion.frames.iter().take(10) {
+            engine.step(pose, 1.0).unwrap();
+        }
+        engine.garment_positions().to_vec()
+    };
+    assert_eq!(predict(trained.weights.clone()), predict((*snapshot).clone()));
+
+    // Resume: the step count and the metric history continue.
+    let resumed = TrainConfig { max_steps: Some(9), ..config };
+    let (events, result) = run_to_end(Trainer::spawn(setup(&run, resumed, Some(RunLocation::Resume(run.clone()))), None).unwrap());
+    assert!(matches!(events.first(), Some(TrainEvent::Started { step: 6, .. })), "{:?}", events.first());
+    assert_eq!(result.unwrap().steps, 9);
+    let history = neural_cloth::train::RunDir::open(&run).unwrap().history();
+    let steps: Vec<u64> = history.train.iter().map(|r| r.step).collect();
+    assert_eq!(steps, (1..=9).collect::<Vec<_>>());
+}
+
+/// Delegates to the real session but poisons the loss of one step.
+struct Poisoned<S: Session> {
+    inner: S,
+    calls: u64,
+    poison_at: u64,
+}
+
+impl<S: Session> Session for Poisoned<S> {
+    fn step(&mut self) -> Result<MetricRecord, String> {
+        self.calls += 1;
+        let mut r = self.inner.step()?;
+        if self.calls == self.poison_at {
+            r.loss = f64::NAN;
+        }
+        Ok(r)
+    }
+    fn validate(&mut self) -> Result<MetricRecord, String> {
+        self.inner.validate()
+    }
+    fn weights_finite(&self) -> bool {
+        self.inner.weights_finite()
+    }
+    fn snapshot(&self) -> Result<neural_cloth::model::InferenceWeights, String> {
+        self.inner.snapshot()
+    }
+    fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, String> {
+        self.inner.checkpoint(step, history)
+    }
+    fn restore_last_checkpoint(&mut self) -> Result<u64, String> {
+        self.inner.restore_last_checkpoint()
+    }
+    fn learning_rate(&self) -> f64 {
+        self.inner.learning_rate()
+    }
+    fn set_learning_rate(&mut self, lr: f64) {
+        self.inner.set_learning_rate(lr)
+    }
+    fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), String> {
+        self.inner.set_fabric(fabric)
+    }
+    fn set_window(&mut self, window_secs: f32) -> Result<(), String> {
+        self.inner.set_window(window_secs)
+    }
+}
+
+#[test]
+fn a_non_finite_loss_rolls_back_and_lowers_the_learning_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = TrainConfig { max_steps: Some(8), checkpoint_every: 4, validate_every: 100, ..quick_config() };
+    let (session, loop_config): (_, LoopConfig) = prepare(setup(dir.path(), config, None)).unwrap();
+    let poisoned = Poisoned { inner: session, calls: 0, poison_at: 6 };
+    let (events, result) = run_to_end(TrainerHandle::spawn_session(poisoned, loop_config, None).unwrap());
+    let rollback = events.iter().find_map(|e| match e {
+        TrainEvent::RolledBack { diverged_at, restored_step, learning_rate } => Some((*diverged_at, *restored_step, *learning_rate)),
+        _ => None,
+    });
+    let (diverged_at, restored, lr) = rollback.expect("a rollback event");
+    assert_eq!((diverged_at, restored), (6, 4));
+    assert!((lr - 5e-4).abs() < 1e-12, "learning rate {lr}");
+    let summary = result.unwrap();
+    assert_eq!((summary.steps, summary.rollbacks), (8, 1));
+}
+
+#[test]
+fn baked_caches_round_trip_and_bad_requests_leave_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let config = TrainConfig { max_steps: Some(2), ..quick_config() };
+    run_to_end(Trainer::spawn(setup(&run, config, None), None).unwrap()).1.unwrap();
+    let trained = load_trained(&run).unwrap();
+    let scene = &trained.scene;
+    let motion = scene.motions[0].0.clone();
+    let engine = || InferenceEngine::from_scene(trained.weights.clone(), &scene.avatar, &scene.garment, &DescriptorConfig::default(), 30.0, InferenceOptions::default()).unwrap();
+    // Reference frames straight from the engine at the training rate.
+    let mut reference = engine();
+    let expected: Vec<Vec<_>> = motion
+        .frames
+        .iter()
+        .map(|p| {
+            reference.step(p, 1.0).unwrap();
+            reference.garment_positions().to_vec()
+        })
+        .collect();
+    for format in [BakeFormat::Pc2, BakeFormat::Mdd] {
+        let out = dir.path().join(format!("walk.{}", format.extension()));
+        let options = BakeOptions { format, out: out.clone(), fps: 30.0, ..Default::default() };
+        let mut source = ModelSource::new(engine(), 30.0);
+        let report = bake(&scene.avatar, &scene.garment, &motion, &mut source, &options, &mut |_, _| true).unwrap();
+        assert_eq!(report.frames, expected.len());
+        let frames = match format {
+            BakeFormat::Pc2 => read_pc2(&out).unwrap().frames,
+            _ => read_mdd(&out).unwrap().frames,
+        };
+        assert_eq!(frames, expected, "{format:?} must round-trip bit for bit");
+    }
+    // w outside [0, 2], a missing folder and a cancelled bake leave no file behind.
+    let before = std::fs::read_dir(dir.path()).unwrap().count();
+    for options in [
+        BakeOptions { w: 2.5, out: dir.path().join("bad.pc2"), ..Default::default() },
+        BakeOptions { out: dir.path().join("missing/bad.pc2"), ..Default::default() },
+    ] {
+        let mut source = ModelSource::new(engine(), 30.0);
+        assert!(bake(&scene.avatar, &scene.garment, &motion, &mut source, &options, &mut |_, _| true).is_err());
+    }
+    let mut source = ModelSource::new(engine(), 30.0);
+    let cancelled = bake(&scene.avatar, &scene.garment, &motion, &mut source, &BakeOptions { out: dir.path().join("c.pc2"), ..Default::default() }, &mut |done, _| done < 5);
+    assert!(cancelled.is_err());
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), before);
+}
+
+fn cli(args: &[&str], cwd: &Path) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_neural-cloth")).args(args).current_dir(cwd).output().unwrap();
+    (out.status.success(), format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr)))
+}
+
+#[test]
+fn cli_trains_bakes_and_refuses_a_foreign_garment() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("tiny.toml"), TINY).unwrap();
+    let (ok, log) = cli(&["train", "--scene", "tiny.toml", "--steps", "2", "--batch", "2", "--out", "run"], dir.path());
+    assert!(ok, "{log}");
+    assert!(log.contains("\"steps\": 2"), "{log}");
+    let (ok, log) = cli(&["bake", "run", "--motion", "walk", "--format", "obj", "--out", "walk-obj"], dir.path());
+    assert!(ok, "{log}");
+    assert_eq!(std::fs::read_dir(dir.path().join("walk-obj")).unwrap().count(), 31);
+    let (ok, log) = cli(&["bake", "run", "--motion", "nope"], dir.path());
+    assert!(!ok && log.contains("unknown motion 'nope'"), "{log}");
+    // Swap the garment in the run's scene: the checkpoint must be refused.
+    let scene_toml = std::fs::read_to_string(dir.path().join("run/scene.toml")).unwrap();
+    std::fs::write(dir.path().join("run/scene.toml"), scene_toml.replace("resolution = 400", "resolution = 500")).unwrap();
+    let (ok, log) = cli(&["bake", "run", "--motion", "walk", "--out", "x.pc2"], dir.path());
+    assert!(!ok && log.contains("no longer matches"), "{log}");
+    assert!(!dir.path().join("x.pc2").exists());
+    let _ = Arc::new(0);
+}
