@@ -11,5 +11,6 @@ pub mod physics;
 pub mod model;
 pub mod train;
 pub mod bake;
+pub mod bench;
 pub mod render;
 pub mod app;

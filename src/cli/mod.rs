@@ -1,8 +1,11 @@
 //! Argument parsing and dispatch of the subcommands. Each subcommand lives in its own file
 //! and calls into the library; this layer only parses, reports progress and prints.
 
+mod app_launcher;
 mod bake;
+mod bench;
 mod inspect;
+mod screenshot;
 mod train;
 
 use std::path::PathBuf;
@@ -35,15 +38,25 @@ pub enum Command {
     Bake(bake::BakeArgs),
     /// Bake a motion with the reference simulator (the paper's Eq. 8 baseline).
     Simulate(bake::SimulateArgs),
+    /// Measure inference fps (10K/250K DoF), the bandwidth floor, training and physics costs.
+    Bench(bench::BenchArgs),
+    /// Render the viewport offscreen to a PNG (works without a display).
+    Screenshot(screenshot::ScreenshotArgs),
 }
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        None => neural_cloth::app::run_app(neural_cloth::app::AppOptions { project: cli.project, ..Default::default() }),
+        None => neural_cloth::app::run_app(neural_cloth::app::AppOptions {
+            project: cli.project,
+            launcher: Some(Box::new(app_launcher::RealLauncher)),
+            ..Default::default()
+        }),
         Some(Command::Inspect { file }) => inspect::run(&file),
         Some(Command::Train(args)) => train::run(args),
         Some(Command::Bake(args)) => bake::run(args),
         Some(Command::Simulate(args)) => bake::simulate(args),
+        Some(Command::Bench(args)) => bench::run(args),
+        Some(Command::Screenshot(args)) => screenshot::run(args),
     }
 }

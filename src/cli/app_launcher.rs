@@ -1,0 +1,30 @@
+//! Connects the app's training panel to the real trainer (`train::Trainer`).
+
+use std::sync::Arc;
+
+use neural_cloth::app::{TrainerLauncher, TrainingRequest};
+use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
+use neural_cloth::scene::config::SceneConfig;
+use neural_cloth::train::{RunLocation, TrainSetup, Trainer, TrainerHandle};
+
+/// Starts real training runs for the app.
+pub struct RealLauncher;
+
+impl TrainerLauncher for RealLauncher {
+    fn launch(&mut self, request: TrainingRequest, notify: Arc<dyn Fn() + Send + Sync>) -> Result<TrainerHandle, String> {
+        let scene = (*request.scene).clone();
+        // The run stores its scene description so it can be evaluated and baked later; a
+        // scene edited in the app that differs from it is refused at load time (fingerprint).
+        let scene_config = SceneConfig::default_scene();
+        let setup = TrainSetup {
+            scene,
+            scene_config,
+            train: request.config,
+            model: ClothNetConfig::default(),
+            descriptors: DescriptorConfig::default(),
+            fabric: Some(request.fabric),
+            location: RunLocation::NewUnder(request.run_dir),
+        };
+        Trainer::spawn(setup, Some(notify)).map_err(|e| e.to_string())
+    }
+}

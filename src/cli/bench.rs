@@ -1,0 +1,60 @@
+//! `neural-cloth bench`: inference fps at 10K and 250K DoF (1 thread and all threads), the
+//! memory-bandwidth floor, training step time and per-term physics cost.
+
+use std::path::PathBuf;
+
+use neural_cloth::bench::{BenchOptions, run_suite};
+
+/// Arguments of `bench`.
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Print the results as JSON instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// A quick run (10K DoF only, fewer frames and steps) for smoke tests.
+    #[arg(long)]
+    pub quick: bool,
+    /// Also write the tables to this Markdown file (e.g. docs/BENCHMARKS.md).
+    #[arg(long)]
+    pub markdown: Option<PathBuf>,
+}
+
+/// Runs `bench`.
+pub fn run(args: BenchArgs) -> anyhow::Result<()> {
+    let options = if args.quick {
+        BenchOptions { dofs: vec![10_000], frames: 10, train_batches: vec![4], train_steps: 2, physics: false }
+    } else {
+        BenchOptions::default()
+    };
+    let report = run_suite(&options, &mut |line| eprintln!("{line}")).map_err(anyhow::Error::msg)?;
+    let markdown = report.to_markdown();
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!("{markdown}");
+    }
+    if let Some(path) = args.markdown {
+        let machine = machine_description();
+        let text = format!(
+            "# Benchmarks\n\nMeasured with `neural-cloth bench --markdown {}` (release build).\n\nMachine: {machine}.\n\n{markdown}",
+            path.display()
+        );
+        neural_cloth::io::export::atomic::write_atomic(&path, text.as_bytes())?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// CPU model and core count from /proc/cpuinfo (Linux), else the core count.
+pub fn machine_description() -> String {
+    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let model = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| t.lines().find_map(|l| l.strip_prefix("model name").map(|v| v.trim_start_matches([' ', '\t', ':']).to_string())))
+        .unwrap_or_else(|| "unknown CPU".into());
+    let mem = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|t| t.lines().find_map(|l| l.strip_prefix("MemTotal:").map(|v| v.trim().to_string())))
+        .unwrap_or_default();
+    format!("{model}, {cores} cores available, {mem} memory")
+}
