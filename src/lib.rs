@@ -12,5 +12,6 @@ pub mod model;
 pub mod train;
 pub mod bake;
 pub mod bench;
+pub mod report;
 pub mod render;
 pub mod app;

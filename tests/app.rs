@@ -12,7 +12,9 @@ use egui_kittest::kittest::Queryable;
 use egui_kittest::{Harness, SnapshotOptions};
 use neural_cloth::app::metrics::MetricRecord;
 use neural_cloth::app::panels::LoadKind;
-use neural_cloth::app::{AppOptions, NeuralClothApp, TrainerLauncher, TrainingRequest, TrainingState};
+use neural_cloth::app::{
+    AppOptions, NeuralClothApp, TrainerLauncher, TrainingRequest, TrainingState,
+};
 use neural_cloth::model::InferenceWeights;
 use neural_cloth::physics::FabricParams;
 use neural_cloth::train::handle::{LoopConfig, Session, TrainerHandle};
@@ -29,24 +31,40 @@ fn assets() -> PathBuf {
 
 /// Tolerates tiny rasteriser differences (e.g. another CPU running lavapipe).
 fn snapshot_options() -> SnapshotOptions {
-    SnapshotOptions::new().threshold(1.5).max_failed_pixels(1500)
+    SnapshotOptions::new()
+        .threshold(1.5)
+        .max_failed_pixels(1500)
 }
 
 fn options(launcher: Option<Box<dyn TrainerLauncher>>) -> AppOptions {
-    let store = std::env::temp_dir().join(format!("neural-cloth-app-test-{}", std::process::id())).join("recent.json");
-    AppOptions { launcher, recent_store: Some(store), ..Default::default() }
+    let store = std::env::temp_dir()
+        .join(format!("neural-cloth-app-test-{}", std::process::id()))
+        .join("recent.json");
+    AppOptions {
+        launcher,
+        recent_store: Some(store),
+        ..Default::default()
+    }
 }
 
 /// The app on the default scene, paused at [`SHOWN_TIME_SECS`].
 fn harness(launcher: Option<Box<dyn TrainerLauncher>>) -> Harness<'static, NeuralClothApp> {
     let options = options(launcher);
-    let mut harness = Harness::builder().with_size(SIZE).with_pixels_per_point(1.0).wgpu().build_eframe(move |cc| {
-        let mut app = NeuralClothApp::new(&cc.egui_ctx, cc.wgpu_render_state.as_ref(), options).expect("the default scene builds");
-        app.state.playback.playing = false;
-        let duration = app.state.current_motion().map_or(0.0, |m| m.duration_secs());
-        app.state.playback.seek(SHOWN_TIME_SECS, duration);
-        app
-    });
+    let mut harness = Harness::builder()
+        .with_size(SIZE)
+        .with_pixels_per_point(1.0)
+        .wgpu()
+        .build_eframe(move |cc| {
+            let mut app = NeuralClothApp::new(&cc.egui_ctx, cc.wgpu_render_state.as_ref(), options)
+                .expect("the default scene builds");
+            app.state.playback.playing = false;
+            let duration = app
+                .state
+                .current_motion()
+                .map_or(0.0, |m| m.duration_secs());
+            app.state.playback.seek(SHOWN_TIME_SECS, duration);
+            app
+        });
     harness.run();
     harness
 }
@@ -61,25 +79,56 @@ fn viewport_image(harness: &mut Harness<'static, NeuralClothApp>) -> image::Rgba
     image::imageops::crop_imm(&image, x, y, w, h).to_image()
 }
 
+/// The w slider (its value box carries the same label).
+fn w_slider<'a>(h: &'a Harness<'static, NeuralClothApp>) -> egui_kittest::Node<'a> {
+    h.get_by_role_and_label(egui::accesskit::Role::Slider, "w (dynamics)")
+}
+
+/// Scrolls the button labelled `label` into view and clicks it.
+fn click(h: &mut Harness<'static, NeuralClothApp>, label: &str) {
+    h.step();
+    h.get_by_label(label).scroll_to_me();
+    h.step();
+    h.get_by_label(label).click();
+}
+
 fn differing_pixels(a: &image::RgbaImage, b: &image::RgbaImage) -> usize {
-    a.pixels().zip(b.pixels()).filter(|(p, q)| p.0.iter().zip(q.0).any(|(x, y)| x.abs_diff(y) > 8)).count()
+    a.pixels()
+        .zip(b.pixels())
+        .filter(|(p, q)| p.0.iter().zip(q.0).any(|(x, y)| x.abs_diff(y) > 8))
+        .count()
 }
 
 #[test]
 fn default_scene_at_start() {
     let mut h = harness(None);
     let app = h.state();
-    assert!(app.viewport.has_gpu(), "kittest's wgpu render state reaches the viewport");
-    assert!(app.state.scene.garment.is_some(), "the default scene has a garment");
-    assert!(!app.state.scene.avatar.motions.is_empty(), "the default scene has motions");
+    assert!(
+        app.viewport.has_gpu(),
+        "kittest's wgpu render state reaches the viewport"
+    );
+    assert!(
+        app.state.scene.garment.is_some(),
+        "the default scene has a garment"
+    );
+    assert!(
+        !app.state.scene.avatar.motions.is_empty(),
+        "the default scene has motions"
+    );
     assert_eq!(*app.state.training.state(), TrainingState::Idle);
     h.get_by_label("Train");
-    h.get_by_label("w (dynamics)");
+    w_slider(&h);
     let image = viewport_image(&mut h);
     // The viewport shows more than the background: body and garment cover a good share.
     let background = image.get_pixel(2, 2).0;
-    let covered = image.pixels().filter(|p| p.0.iter().zip(background).any(|(a, b)| a.abs_diff(b) > 30)).count();
-    assert!(covered > (image.width() * image.height()) as usize / 20, "only {covered} pixels differ from the background");
+    let covered = image
+        .pixels()
+        .filter(|p| p.0.iter().zip(background).any(|(a, b)| a.abs_diff(b) > 30))
+        .count();
+    assert!(
+        covered > (image.width() * image.height()) as usize / 20,
+        "only {covered} pixels differ from the background"
+    );
     h.snapshot_options("default_scene", &snapshot_options());
 }
 
@@ -99,7 +148,11 @@ fn synthetic_history() -> MetricHistory {
         };
         history.train.push(record);
         if step % 50 == 0 {
-            history.validation.push(MetricRecord { strain: record.strain * 1.2, collision_pct: record.collision_pct * 1.3, ..record });
+            history.validation.push(MetricRecord {
+                strain: record.strain * 1.2,
+                collision_pct: record.collision_pct * 1.3,
+                ..record
+            });
         }
     }
     history
@@ -113,9 +166,12 @@ fn curve_panel_with_metrics() {
     h.snapshot_options("metric_curves", &snapshot_options());
     // Switching the x axis to wall-clock time through the UI changes what is plotted.
     let before = h.render().expect("render");
-    h.get_by_label("time (s)").click();
+    h.get_by_label("wall-clock (s)").click();
     h.run();
-    assert_eq!(h.state().state.curves.x_axis, neural_cloth::app::metrics::XAxis::WallClock);
+    assert_eq!(
+        h.state().state.curves.x_axis,
+        neural_cloth::app::metrics::XAxis::WallClock
+    );
     let after = h.render().expect("render");
     assert!(differing_pixels(&before, &after) > 100);
 }
@@ -123,42 +179,113 @@ fn curve_panel_with_metrics() {
 #[test]
 fn w_slider_changes_the_shown_garment() {
     let mut h = harness(None);
-    h.get_by_label("w (dynamics)").set_value_accesskit(0.0);
+    // A motion with strong dynamics, chosen in the motion list.
+    h.get_by_label_contains("run (").scroll_to_me();
+    h.step();
+    h.get_by_label_contains("run (").click();
+    h.run();
+    let shown = h.state().state.current_motion().map(|m| m.name.clone());
+    assert_eq!(shown.as_deref(), Some("run"));
+    let duration = h
+        .state()
+        .state
+        .current_motion()
+        .map_or(0.0, |m| m.duration_secs());
+    h.state_mut().state.playback.seek(SHOWN_TIME_SECS, duration);
+    w_slider(&h).set_value_accesskit(0.0);
     h.run();
     assert_eq!(h.state().state.w, 0.0);
     let at0 = viewport_image(&mut h);
-    let garment0 = h.state_mut().state.scene_frame().0.garment.clone().expect("garment");
-    h.get_by_label("w (dynamics)").set_value_accesskit(2.0);
+    let garment0 = h
+        .state_mut()
+        .state
+        .scene_frame()
+        .0
+        .garment
+        .clone()
+        .expect("garment");
+    w_slider(&h).set_value_accesskit(2.0);
     h.run();
     assert_eq!(h.state().state.w, 2.0);
     let at2 = viewport_image(&mut h);
-    let garment2 = h.state_mut().state.scene_frame().0.garment.clone().expect("garment");
-    assert!(h.state().state.preview.is_active(), "the preview model runs: {}", h.state().state.preview.describe());
-    let moved = garment0.positions.iter().zip(&garment2.positions).map(|(a, b)| (a - b).norm()).fold(0.0f32, f32::max);
-    assert!(moved > 0.005, "w = 0 and w = 2 give the same garment (max difference {moved} m)");
+    let garment2 = h
+        .state_mut()
+        .state
+        .scene_frame()
+        .0
+        .garment
+        .clone()
+        .expect("garment");
+    assert!(
+        h.state().state.preview.is_active(),
+        "the preview model runs: {}",
+        h.state().state.preview.describe()
+    );
+    let moved = garment0
+        .positions
+        .iter()
+        .zip(&garment2.positions)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0f32, f32::max);
+    assert!(
+        moved > 0.005,
+        "w = 0 and w = 2 give the same garment (max difference {moved} m)"
+    );
+    if let Some(dir) = std::env::var_os("NEURAL_CLOTH_DEBUG_DIR") {
+        let _ = at0.save(Path::new(&dir).join("w0.png"));
+        let _ = at2.save(Path::new(&dir).join("w2.png"));
+    }
     let changed = differing_pixels(&at0, &at2);
-    assert!(changed > 200, "only {changed} viewport pixels differ between w = 0 and w = 2");
+    assert!(
+        changed > 200,
+        "only {changed} viewport pixels differ between w = 0 and w = 2"
+    );
     egui_kittest::image_snapshot_options(&at0, "viewport_w0", &snapshot_options());
     egui_kittest::image_snapshot_options(&at2, "viewport_w2", &snapshot_options());
 }
 
 #[test]
 fn broken_garment_file_shows_an_error() {
-    let dir = std::env::temp_dir().join("neural-cloth-app-test");
+    // A fixed path, since the snapshot shows it in the error message.
+    let dir = PathBuf::from("/tmp/neural-cloth-app-test");
     std::fs::create_dir_all(&dir).expect("temp dir");
     let broken = dir.join("broken_garment.obj");
-    std::fs::write(&broken, "v 0 0 0\nv 1 0 0\nf 1 2 x\nthis is not an OBJ file\n").expect("write");
+    std::fs::write(
+        &broken,
+        "v 0 0 0\nv 1 0 0\nf 1 2 x\nthis is not an OBJ file\n",
+    )
+    .expect("write");
     let mut h = harness(None);
-    let before = h.state().state.scene.garment.as_ref().map(|g| g.name.clone());
+    let before = h
+        .state()
+        .state
+        .scene
+        .garment
+        .as_ref()
+        .map(|g| g.name.clone());
     h.state_mut().state.typed.garment = broken.display().to_string();
     h.run();
-    h.get_by_label("Load garment").click();
+    click(&mut h, "Load garment");
     h.run();
     let app = h.state();
-    let error = app.state.last_error().expect("an error message is shown").to_string();
-    assert!(error.ends_with("broken_garment.obj"), "the error names the file last: {error}");
-    assert_eq!(app.state.scene.garment.as_ref().map(|g| g.name.clone()), before, "the scene is unchanged");
-    h.get_by_label_contains("broken_garment.obj");
+    let error = app
+        .state
+        .last_error()
+        .expect("an error message is shown")
+        .to_string();
+    assert!(
+        error.ends_with("broken_garment.obj"),
+        "the error names the file last: {error}"
+    );
+    assert_eq!(
+        app.state.scene.garment.as_ref().map(|g| g.name.clone()),
+        before,
+        "the scene is unchanged"
+    );
+    assert!(
+        h.get_all_by_label_contains("broken_garment.obj").count() >= 1,
+        "the error is on screen"
+    );
     h.snapshot_options("load_error", &snapshot_options());
 }
 
@@ -168,20 +295,43 @@ fn loading_through_the_dialog_path_updates_the_scene() {
     let motions_before = h.state().state.scene.avatar.motions.len();
     let walk = assets().join("motions/cmu_02_01_walk.bvh");
     // `load_file` is what the Browse… dialog and the typed-path field call.
-    assert!(h.state_mut().load_file(LoadKind::Motion, &walk), "{:?}", h.state().state.last_error());
+    assert!(
+        h.state_mut().load_file(LoadKind::Motion, &walk),
+        "{:?}",
+        h.state().state.last_error()
+    );
     h.run();
     let app = h.state();
     assert_eq!(app.state.scene.avatar.motions.len(), motions_before + 1);
-    assert_eq!(app.state.playback.motion, motions_before, "the new motion is selected");
-    assert!(app.state.current_motion().is_some_and(|m| m.duration_secs() > 1.0));
+    assert_eq!(
+        app.state.playback.motion, motions_before,
+        "the new motion is selected"
+    );
+    assert!(
+        app.state
+            .current_motion()
+            .is_some_and(|m| m.duration_secs() > 1.0)
+    );
     // An avatar file replaces the avatar.
     let cesium = assets().join("avatars/CesiumMan.glb");
-    assert!(h.state_mut().load_file(LoadKind::Avatar, &cesium), "{:?}", h.state().state.last_error());
+    assert!(
+        h.state_mut().load_file(LoadKind::Avatar, &cesium),
+        "{:?}",
+        h.state().state.last_error()
+    );
     h.run();
     assert_eq!(h.state().state.scene.avatar.name, "CesiumMan");
     // A missing file is an error, not a panic.
-    assert!(!h.state_mut().load_file(LoadKind::Garment, Path::new("../shared/assets/garments/missing.obj")));
-    assert!(h.state().state.last_error().is_some_and(|e| e.ends_with("missing.obj")));
+    assert!(!h.state_mut().load_file(
+        LoadKind::Garment,
+        Path::new("../shared/assets/garments/missing.obj")
+    ));
+    assert!(
+        h.state()
+            .state
+            .last_error()
+            .is_some_and(|e| e.ends_with("missing.obj"))
+    );
 }
 
 #[test]
@@ -204,8 +354,14 @@ fn project_save_and_open_round_trip() {
     assert!(h.state_mut().open_project(&file));
     let s = &h.state().state;
     assert_eq!(s.fabric, FabricParams::preset("denim").expect("preset"));
-    assert_eq!((s.w, s.train_config.window_secs, s.draw.wireframe), (1.7, 1.25, true));
-    assert_eq!(s.recent.paths.first().map(|p| p.ends_with("setup.toml")), Some(true));
+    assert_eq!(
+        (s.w, s.train_config.window_secs, s.draw.wireframe),
+        (1.7, 1.25, true)
+    );
+    assert_eq!(
+        s.recent.paths.first().map(|p| p.ends_with("setup.toml")),
+        Some(true)
+    );
 }
 
 /// A training session that produces decaying metrics quickly, without a network.
@@ -218,7 +374,15 @@ impl Session for FakeSession {
         self.steps += 1;
         std::thread::sleep(Duration::from_millis(2));
         let s = self.steps as f64;
-        Ok(MetricRecord { loss: 1.0 / s, strain: 0.1 / s, bending: 0.05, collision_pct: 10.0 / s, gravity: -0.3, inertia: 0.01, ..Default::default() })
+        Ok(MetricRecord {
+            loss: 1.0 / s,
+            strain: 0.1 / s,
+            bending: 0.05,
+            collision_pct: 10.0 / s,
+            gravity: -0.3,
+            inertia: 0.01,
+            ..Default::default()
+        })
     }
     fn validate(&mut self) -> Result<MetricRecord, String> {
         self.step()
@@ -253,7 +417,11 @@ struct FakeLauncher {
 }
 
 impl TrainerLauncher for FakeLauncher {
-    fn launch(&mut self, request: TrainingRequest, notify: Arc<dyn Fn() + Send + Sync>) -> Result<TrainerHandle, String> {
+    fn launch(
+        &mut self,
+        request: TrainingRequest,
+        notify: Arc<dyn Fn() + Send + Sync>,
+    ) -> Result<TrainerHandle, String> {
         let config = LoopConfig {
             run_dir: request.run_dir.clone(),
             start_step: 0,
@@ -268,15 +436,23 @@ impl TrainerLauncher for FakeLauncher {
         if let Ok(mut r) = self.requests.lock() {
             r.push(request);
         }
-        TrainerHandle::spawn_session(FakeSession { steps: 0 }, config, Some(notify)).map_err(|e| e.to_string())
+        TrainerHandle::spawn_session(FakeSession { steps: 0 }, config, Some(notify))
+            .map_err(|e| e.to_string())
     }
 }
 
 /// Steps the UI until `done` holds (a generous bound; this is not a timing assertion).
-fn step_until(h: &mut Harness<'static, NeuralClothApp>, what: &str, done: impl Fn(&NeuralClothApp) -> bool) {
+fn step_until(
+    h: &mut Harness<'static, NeuralClothApp>,
+    what: &str,
+    done: impl Fn(&NeuralClothApp) -> bool,
+) {
     let start = Instant::now();
     while !done(h.state()) {
-        assert!(start.elapsed() < Duration::from_secs(60), "timed out waiting for {what}");
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "timed out waiting for {what}"
+        );
         std::thread::sleep(Duration::from_millis(5));
         h.step();
     }
@@ -285,26 +461,48 @@ fn step_until(h: &mut Harness<'static, NeuralClothApp>, what: &str, done: impl F
 #[test]
 fn train_pause_resume_stop_through_the_buttons() {
     let requests = Arc::new(std::sync::Mutex::new(Vec::new()));
-    let mut h = harness(Some(Box::new(FakeLauncher { requests: requests.clone() })));
-    h.get_by_label("Train").click();
+    let mut h = harness(Some(Box::new(FakeLauncher {
+        requests: requests.clone(),
+    })));
+    click(&mut h, "Train");
     h.step();
     assert_eq!(*h.state().state.training.state(), TrainingState::Running);
-    let request_fps = requests.lock().map(|r| r.first().map(|q| q.config.fps)).ok().flatten();
-    assert_eq!(request_fps, Some(h.state().state.train_config.fps), "the launcher got the app's settings");
-    step_until(&mut h, "training metrics", |app| app.state.training.history.train.len() >= 5 && !app.state.training.history.validation.is_empty());
+    let request_fps = requests
+        .lock()
+        .map(|r| r.first().map(|q| q.config.fps))
+        .ok()
+        .flatten();
+    assert_eq!(
+        request_fps,
+        Some(h.state().state.train_config.fps),
+        "the launcher got the app's settings"
+    );
+    step_until(&mut h, "training metrics", |app| {
+        app.state.training.history.train.len() >= 5
+            && !app.state.training.history.validation.is_empty()
+    });
     assert!(h.state().state.training.progress.step >= 5);
-    h.get_by_label("Pause").click();
+    click(&mut h, "Pause");
     h.step();
     assert_eq!(*h.state().state.training.state(), TrainingState::Paused);
-    h.get_by_label("Resume").click();
+    click(&mut h, "Resume");
     h.step();
     assert_eq!(*h.state().state.training.state(), TrainingState::Running);
-    h.get_by_label("Stop").click();
+    click(&mut h, "Stop");
     h.step();
-    step_until(&mut h, "the run to finish", |app| matches!(app.state.training.state(), TrainingState::Finished(_)));
-    assert!(matches!(h.state().state.training.state(), TrainingState::Finished(Ok(_))), "{:?}", h.state().state.training.state());
+    step_until(&mut h, "the run to finish", |app| {
+        matches!(app.state.training.state(), TrainingState::Finished(_))
+    });
+    assert!(
+        matches!(
+            h.state().state.training.state(),
+            TrainingState::Finished(Ok(_))
+        ),
+        "{:?}",
+        h.state().state.training.state()
+    );
     assert!(h.state().state.training.last_checkpoint.is_some());
-    h.get_by_label("Reset").click();
+    click(&mut h, "Reset");
     h.run();
     assert_eq!(*h.state().state.training.state(), TrainingState::Idle);
     assert!(h.state().state.training.history.train.is_empty());
@@ -313,8 +511,13 @@ fn train_pause_resume_stop_through_the_buttons() {
 #[test]
 fn without_a_trainer_train_reports_an_error() {
     let mut h = harness(None);
-    h.get_by_label("Train").click();
+    click(&mut h, "Train");
     h.run();
     assert_eq!(*h.state().state.training.state(), TrainingState::Idle);
-    assert!(h.state().state.last_error().is_some_and(|e| e.contains("no trainer")));
+    assert!(
+        h.state()
+            .state
+            .last_error()
+            .is_some_and(|e| e.contains("no trainer"))
+    );
 }

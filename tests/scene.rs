@@ -42,7 +42,11 @@ fn assert_consistently_wound(mesh: &TriMesh, what: &str) {
     let mut directed = HashSet::new();
     for f in &mesh.faces {
         for k in 0..3 {
-            assert!(directed.insert((f[k], f[(k + 1) % 3])), "{what}: edge {:?} repeated in the same direction", (f[k], f[(k + 1) % 3]));
+            assert!(
+                directed.insert((f[k], f[(k + 1) % 3])),
+                "{what}: edge {:?} repeated in the same direction",
+                (f[k], f[(k + 1) % 3])
+            );
         }
     }
     let report = mesh.report();
@@ -54,7 +58,11 @@ fn assert_symmetric(positions: &[Vec3], tol: f32, what: &str) {
     let tree = KdTree::new(positions);
     for p in positions {
         let (_, d2) = tree.nearest(&Vec3::new(-p.x, p.y, p.z)).unwrap();
-        assert!(d2.sqrt() < tol, "{what}: no mirror image of {p:?} ({} m off)", d2.sqrt());
+        assert!(
+            d2.sqrt() < tol,
+            "{what}: no mirror image of {p:?} ({} m off)",
+            d2.sqrt()
+        );
     }
 }
 
@@ -64,7 +72,9 @@ fn boundary_loops(mesh: &TriMesh) -> usize {
     let mut parent: HashMap<u32, u32> = HashMap::new();
     fn find(p: &mut HashMap<u32, u32>, v: u32) -> u32 {
         let up = *p.entry(v).or_insert(v);
-        if up == v { v } else {
+        if up == v {
+            v
+        } else {
             let r = find(p, up);
             p.insert(v, r);
             r
@@ -77,7 +87,10 @@ fn boundary_loops(mesh: &TriMesh) -> usize {
         }
     }
     let keys: Vec<u32> = parent.keys().copied().collect();
-    keys.into_iter().map(|v| find(&mut parent, v)).collect::<HashSet<_>>().len()
+    keys.into_iter()
+        .map(|v| find(&mut parent, v))
+        .collect::<HashSet<_>>()
+        .len()
 }
 
 #[test]
@@ -85,12 +98,23 @@ fn mannequin_skeleton_has_human_proportions_and_mirror_pairs() {
     let a = avatar();
     let sk = &a.skeleton;
     assert_eq!(sk.len(), 22);
-    assert!((1.70..=1.80).contains(&a.height_m()), "height {}", a.height_m());
+    assert!(
+        (1.70..=1.80).contains(&a.height_m()),
+        "height {}",
+        a.height_m()
+    );
     let (lo, _) = a.rest_mesh.bounds().unwrap();
     assert!(lo.y.abs() < 0.01, "feet at {}", lo.y);
     let names: HashSet<&str> = sk.names.iter().map(String::as_str).collect();
     assert_eq!(names.len(), 22);
-    for required in ["Hips", "Spine2", "Head", "LeftForeArm", "RightToeBase", "LeftUpLeg"] {
+    for required in [
+        "Hips",
+        "Spine2",
+        "Head",
+        "LeftForeArm",
+        "RightToeBase",
+        "LeftUpLeg",
+    ] {
         assert!(names.contains(required), "{required}");
     }
     let map = mirror_map(&sk.names);
@@ -122,8 +146,16 @@ fn body_mesh_is_closed_outward_and_symmetric() {
     let n = mesh.vertex_count();
     assert!((3000..=8000).contains(&n), "{n} vertices");
     let topo = Topology::new(mesh);
-    assert!(topo.boundary_edges.is_empty(), "{} boundary edges", topo.boundary_edges.len());
-    assert_eq!(topo.hinges.len(), topo.edges.len(), "every edge has exactly two faces");
+    assert!(
+        topo.boundary_edges.is_empty(),
+        "{} boundary edges",
+        topo.boundary_edges.len()
+    );
+    assert_eq!(
+        topo.hinges.len(),
+        topo.edges.len(),
+        "every edge has exactly two faces"
+    );
     assert_consistently_wound(mesh, "body");
     let volume = signed_volume(mesh);
     assert!((0.04..0.10).contains(&volume), "volume {volume} m³");
@@ -139,7 +171,11 @@ fn body_mesh_is_closed_outward_and_symmetric() {
     assert!(inward * 1000 < n, "{inward} inward normals");
     // Every vertex lies on the body surface.
     for p in &mesh.positions {
-        assert!(body.distance(p).abs() < 0.004, "{p:?} off the surface by {}", body.distance(p));
+        assert!(
+            body.distance(p).abs() < 0.004,
+            "{p:?} off the surface by {}",
+            body.distance(p)
+        );
     }
 }
 
@@ -154,9 +190,41 @@ fn rest_pose_skinning_reproduces_the_bind_mesh() {
         assert!((w.iter().sum::<f32>() - 1.0).abs() < 1e-5);
         assert!(w.iter().all(|&x| (0.0..=1.0).contains(&x)));
     }
+    // Mirror-image vertices carry mirror-image weights.
+    let map = mirror_map(&a.skeleton.names);
+    let tree = KdTree::new(&a.bind_mesh.positions);
+    let weights_of = |v: usize| -> HashMap<u16, f32> {
+        a.skin.joints[v]
+            .iter()
+            .zip(&a.skin.weights[v])
+            .filter(|(_, w)| **w > 0.0)
+            .map(|(j, w)| (*j, *w))
+            .collect()
+    };
+    for (v, p) in a.bind_mesh.positions.iter().enumerate() {
+        let (m, _) = tree.nearest(&Vec3::new(-p.x, p.y, p.z)).unwrap();
+        let (mine, theirs) = (weights_of(v), weights_of(m as usize));
+        for (j, w) in &mine {
+            let other = theirs
+                .get(&(map[*j as usize] as u16))
+                .copied()
+                .unwrap_or(0.0);
+            assert!(
+                (w - other).abs() < 0.05,
+                "vertex {v} joint {j}: {w} vs mirrored {other}"
+            );
+        }
+    }
     // Hands are bound to the hand or forearm, feet to the foot or toes.
     let hand = a.skeleton.index_of("LeftHand").unwrap() as u16;
-    let tip = a.bind_mesh.positions.iter().enumerate().max_by(|x, y| x.1.x.total_cmp(&y.1.x)).unwrap().0;
+    let tip = a
+        .bind_mesh
+        .positions
+        .iter()
+        .enumerate()
+        .max_by(|x, y| x.1.x.total_cmp(&y.1.x))
+        .unwrap()
+        .0;
     assert_eq!(a.skin.joints[tip][0], hand);
 }
 
@@ -165,7 +233,11 @@ fn garments_are_manifold_open_symmetric_and_outside_the_body() {
     let a = avatar();
     let body = BodySdf::mannequin();
     let tree = KdTree::new(&a.rest_mesh.positions);
-    for (kind, openings) in [(GarmentKind::TShirt, 4), (GarmentKind::Skirt, 2), (GarmentKind::Dress, 4)] {
+    for (kind, openings) in [
+        (GarmentKind::TShirt, 4),
+        (GarmentKind::Skirt, 2),
+        (GarmentKind::Dress, 4),
+    ] {
         let g = garment(kind);
         let what = kind.name();
         assert_consistently_wound(&g.mesh, what);
@@ -178,9 +250,20 @@ fn garments_are_manifold_open_symmetric_and_outside_the_body() {
             .iter()
             .filter(|p| tree.nearest(p).unwrap().1.sqrt() <= 0.005)
             .count();
-        assert!(close * 1000 <= g.vertex_count(), "{what}: {close} vertices within 5 mm of a body vertex");
-        let min_field = g.mesh.positions.iter().map(|p| body.distance(p)).fold(f32::INFINITY, f32::min);
-        assert!(min_field > 0.008, "{what}: a vertex is {min_field} m from the body surface");
+        assert!(
+            close * 1000 <= g.vertex_count(),
+            "{what}: {close} vertices within 5 mm of a body vertex"
+        );
+        let min_field = g
+            .mesh
+            .positions
+            .iter()
+            .map(|p| body.distance(p))
+            .fold(f32::INFINITY, f32::min);
+        assert!(
+            min_field > 0.008,
+            "{what}: a vertex is {min_field} m from the body surface"
+        );
         for w in &g.skin.weights {
             assert!((w.iter().sum::<f32>() - 1.0).abs() < 1e-5);
         }
@@ -207,24 +290,42 @@ fn posed_with(a: &Avatar, joint: &str, rotation: Quat) -> Pose {
 }
 
 fn displacements(g: &Garment, a: &Avatar, pose: &Pose) -> Vec<f32> {
-    g.pose_vertices(a, pose).iter().zip(&g.mesh.positions).map(|(p, q)| (p - q).norm()).collect()
+    g.pose_vertices(a, pose)
+        .iter()
+        .zip(&g.mesh.positions)
+        .map(|(p, q)| (p - q).norm())
+        .collect()
 }
 
 #[test]
 fn sleeves_follow_a_bent_elbow_and_the_torso_stays() {
     let a = avatar();
     let g = garment(GarmentKind::TShirt);
-    let pose = posed_with(a, "LeftForeArm", Quat::from_axis_angle(&Vec3::x_axis(), -std::f32::consts::FRAC_PI_2));
+    let pose = posed_with(
+        a,
+        "LeftForeArm",
+        Quat::from_axis_angle(&Vec3::x_axis(), -std::f32::consts::FRAC_PI_2),
+    );
     let moved = displacements(g, a, &pose);
     let sk = &a.skeleton;
     let rest = sk.joint_positions(&sk.rest_pose());
     let elbow = rest[sk.index_of("LeftForeArm").unwrap()];
     let mut by_distance: Vec<usize> = (0..g.vertex_count()).collect();
-    by_distance.sort_by(|&i, &j| (g.mesh.positions[i] - elbow).norm().total_cmp(&(g.mesh.positions[j] - elbow).norm()));
+    by_distance.sort_by(|&i, &j| {
+        (g.mesh.positions[i] - elbow)
+            .norm()
+            .total_cmp(&(g.mesh.positions[j] - elbow).norm())
+    });
     let near: f32 = by_distance[..20].iter().map(|&v| moved[v]).sum::<f32>() / 20.0;
-    let torso = (0..g.vertex_count()).filter(|&v| g.mesh.positions[v].x.abs() < 0.1).map(|v| moved[v]).fold(0.0f32, f32::max);
+    let torso = (0..g.vertex_count())
+        .filter(|&v| g.mesh.positions[v].x.abs() < 0.1)
+        .map(|v| moved[v])
+        .fold(0.0f32, f32::max);
     assert!(near > 0.002, "sleeve end moved {near} m");
-    assert!(torso < 0.05 * near, "torso moved {torso} m, sleeve end {near} m");
+    assert!(
+        torso < 0.05 * near,
+        "torso moved {torso} m, sleeve end {near} m"
+    );
     // Garment vertices move like the body vertex they took their weights from.
     let body_rest = KdTree::new(&a.rest_mesh.positions);
     let body_posed = a.pose_vertices(&pose);
@@ -235,24 +336,37 @@ fn sleeves_follow_a_bent_elbow_and_the_torso_stays() {
         let body_move = body_posed[b as usize] - a.rest_mesh.positions[b as usize];
         worst = worst.max(((gp[v] - q) - body_move).norm());
     }
-    assert!(worst < 0.01, "a garment vertex departs {worst} m from its body vertex's motion");
+    assert!(
+        worst < 0.01,
+        "a garment vertex departs {worst} m from its body vertex's motion"
+    );
 }
 
 #[test]
 fn lifted_leg_moves_the_skirt_front_on_that_side() {
     let a = avatar();
     let g = garment(GarmentKind::Skirt);
-    let pose = posed_with(a, "LeftUpLeg", Quat::from_axis_angle(&Vec3::x_axis(), -60f32.to_radians()));
+    let pose = posed_with(
+        a,
+        "LeftUpLeg",
+        Quat::from_axis_angle(&Vec3::x_axis(), -60f32.to_radians()),
+    );
     let moved = displacements(g, a, &pose);
     let mean = |keep: &dyn Fn(&Vec3) -> bool| {
-        let sel: Vec<f32> = (0..g.vertex_count()).filter(|&v| keep(&g.mesh.positions[v])).map(|v| moved[v]).collect();
+        let sel: Vec<f32> = (0..g.vertex_count())
+            .filter(|&v| keep(&g.mesh.positions[v]))
+            .map(|v| moved[v])
+            .collect();
         assert!(sel.len() > 20);
         sel.iter().sum::<f32>() / sel.len() as f32
     };
     let left_front = mean(&|p| p.x > 0.05 && p.z > 0.05 && p.y < 0.75);
     let right_back = mean(&|p| p.x < -0.05 && p.z < -0.05 && p.y < 0.75);
     assert!(left_front > 0.05, "left front moved {left_front} m");
-    assert!(right_back < 0.3 * left_front, "right back {right_back} m vs left front {left_front} m");
+    assert!(
+        right_back < 0.3 * left_front,
+        "right back {right_back} m vs left front {left_front} m"
+    );
 }
 
 #[test]
@@ -274,7 +388,10 @@ fn mirrored_walk_swaps_left_and_right() {
     // The motion itself is not symmetric at a single instant: the legs differ.
     let f = &walk.frames[16];
     let p = sk.joint_positions(f);
-    let (l, r) = (p[sk.index_of("LeftFoot").unwrap()], p[sk.index_of("RightFoot").unwrap()]);
+    let (l, r) = (
+        p[sk.index_of("LeftFoot").unwrap()],
+        p[sk.index_of("RightFoot").unwrap()],
+    );
     assert!((l.z - r.z).abs() > 0.1, "feet at {} and {}", l.z, r.z);
 }
 
@@ -287,7 +404,12 @@ fn walk_survives_slerp_resampling() {
         .frames
         .iter()
         .zip(&back.frames)
-        .flat_map(|(x, y)| x.rotations.iter().zip(&y.rotations).map(|(p, q)| angle_between(p, q)))
+        .flat_map(|(x, y)| {
+            x.rotations
+                .iter()
+                .zip(&y.rotations)
+                .map(|(p, q)| angle_between(p, q))
+        })
         .fold(0.0f32, f32::max);
     assert!(worst < 0.03, "{worst} rad");
 }
@@ -300,7 +422,10 @@ fn every_motion_is_finite_at_any_rate() {
             assert_eq!(m.name, kind.name());
             assert_eq!(m.frame_count(), (5.0 * fps) as usize + 1);
             for pose in &m.frames {
-                assert!(neural_cloth::scene::motion::pose_is_finite(pose), "{kind:?} at {fps}");
+                assert!(
+                    neural_cloth::scene::motion::pose_is_finite(pose),
+                    "{kind:?} at {fps}"
+                );
                 assert_eq!(pose.rotations.len(), 22);
             }
         }
@@ -318,14 +443,23 @@ fn spin_reaches_four_pi_and_jump_accelerates() {
         .map(|w| angle_between(&w[0].rotations[0], &w[1].rotations[0]) * 240.0)
         .fold(0.0f32, f32::max);
     let target = 4.0 * std::f32::consts::PI;
-    assert!((0.95 * target..=1.05 * target).contains(&peak), "{peak} rad/s");
+    assert!(
+        (0.95 * target..=1.05 * target).contains(&peak),
+        "{peak} rad/s"
+    );
     let jump = procedural::motion(MotionKind::Jump, 60.0, 1.8).unwrap();
     let y: Vec<f32> = jump.frames.iter().map(|p| p.root_translation.y).collect();
-    let accel = y.windows(3).map(|w| ((w[0] - 2.0 * w[1] + w[2]) * 3600.0).abs()).fold(0.0f32, f32::max);
+    let accel = y
+        .windows(3)
+        .map(|w| ((w[0] - 2.0 * w[1] + w[2]) * 3600.0).abs())
+        .fold(0.0f32, f32::max);
     let rise = y.iter().fold(f32::MIN, |m, &v| m.max(v)) - y[0];
     assert!(accel >= 3.0, "{accel} m/s²");
     assert!(rise > 0.15, "{rise} m");
-    assert!((y[0] - y[y.len() - 1]).abs() < 1e-4, "jump cycle ends where it starts");
+    assert!(
+        (y[0] - y[y.len() - 1]).abs() < 1e-4,
+        "jump cycle ends where it starts"
+    );
     let turn = procedural::motion(MotionKind::Turn, 30.0, 1.6).unwrap();
     let last = turn.frames.last().unwrap().rotations[0];
     let turned = angle_between(&Quat::identity(), &last).to_degrees();
@@ -340,7 +474,10 @@ fn default_scene_builds_from_the_asset() {
     assert_eq!(scene.name, "default");
     assert_eq!(scene.motions.len(), 6);
     assert_eq!(scene.training_fps, 30.0);
-    assert_eq!(scene.fabric.get("preset").and_then(|v| v.as_str()), Some("default"));
+    assert_eq!(
+        scene.fabric.get("preset").and_then(|v| v.as_str()),
+        Some("default")
+    );
     assert!(scene.effects.dynamics && !scene.effects.pinning);
     let names: Vec<&str> = scene.motions.iter().map(|(m, _)| m.name.as_str()).collect();
     for kind in MotionKind::ALL {
@@ -357,6 +494,10 @@ fn default_scene_builds_from_the_asset() {
     }
     // A config naming a file cannot be built without the importers.
     let mut with_file = config.clone();
-    with_file.garment = neural_cloth::scene::config::GarmentSource::File { path: "g.obj".into(), units: None, smoothing_passes: None };
+    with_file.garment = neural_cloth::scene::config::GarmentSource::File {
+        path: "g.obj".into(),
+        units: None,
+        smoothing_passes: None,
+    };
     assert!(procedural::build_builtin(&with_file).is_err());
 }

@@ -23,7 +23,12 @@ pub enum ExportFormat {
 
 impl ExportFormat {
     /// All formats in menu order.
-    pub const ALL: [ExportFormat; 4] = [ExportFormat::Glb, ExportFormat::Pc2, ExportFormat::Mdd, ExportFormat::ObjSequence];
+    pub const ALL: [ExportFormat; 4] = [
+        ExportFormat::Glb,
+        ExportFormat::Pc2,
+        ExportFormat::Mdd,
+        ExportFormat::ObjSequence,
+    ];
 
     /// Menu label.
     pub fn label(self) -> &'static str {
@@ -63,7 +68,13 @@ pub struct ExportSettings {
 
 impl Default for ExportSettings {
     fn default() -> Self {
-        Self { open: false, format: ExportFormat::Glb, path: "export/garment.glb".into(), motion: 0, last_result: None }
+        Self {
+            open: false,
+            format: ExportFormat::Glb,
+            path: "export/garment.glb".into(),
+            motion: 0,
+            last_result: None,
+        }
     }
 }
 

@@ -34,7 +34,9 @@ impl TopologyCache {
         self.body_faces = Some(avatar.bind_mesh.faces.clone().into());
         self.garment_faces = garment.map(|g| g.mesh.faces.clone().into());
         self.garment_edges = garment.map(|g| g.topology.edges.clone().into());
-        self.rest_lengths = garment.map(|g| g.topology.edge_lengths(&g.mesh.positions)).unwrap_or_default();
+        self.rest_lengths = garment
+            .map(|g| g.topology.edge_lengths(&g.mesh.positions))
+            .unwrap_or_default();
     }
 }
 
@@ -43,10 +45,12 @@ pub fn edge_strains(edges: &[[u32; 2]], rest_lengths: &[f32], positions: &[Vec3]
     edges
         .iter()
         .zip(rest_lengths)
-        .map(|(&[a, b], &rest)| match (positions.get(a as usize), positions.get(b as usize)) {
-            (Some(pa), Some(pb)) if rest > 1e-9 => ((pa - pb).norm() / rest - 1.0).abs(),
-            _ => 0.0,
-        })
+        .map(
+            |(&[a, b], &rest)| match (positions.get(a as usize), positions.get(b as usize)) {
+                (Some(pa), Some(pb)) if rest > 1e-9 => ((pa - pb).norm() / rest - 1.0).abs(),
+                _ => 0.0,
+            },
+        )
         .collect()
 }
 
@@ -56,18 +60,29 @@ pub fn build_frame(state: &mut AppState) -> SceneFrame {
     let garment = state.scene.garment.clone();
     let motion_index = state.playback.motion;
     let time = state.playback.time_secs;
-    let pose = avatar.motions.get(motion_index).map(|m| m.sample(time)).unwrap_or_else(|| avatar.skeleton.rest_pose());
+    let pose = avatar
+        .motions
+        .get(motion_index)
+        .map(|m| m.sample(time))
+        .unwrap_or_else(|| avatar.skeleton.rest_pose());
     let mut cache = std::mem::take(&mut state.topology);
     cache.refresh(state.scene.revision, &avatar, garment.as_deref());
     let body_positions = avatar.pose_vertices(&pose);
-    let body_faces = cache.body_faces.clone().unwrap_or_else(|| Arc::from(Vec::new()));
+    let body_faces = cache
+        .body_faces
+        .clone()
+        .unwrap_or_else(|| Arc::from(Vec::new()));
     let mut frame = SceneFrame {
         body: None,
         garment: None,
         collision_points: Vec::new(),
         ground_y: avatar.rest_mesh.bounds().map(|(lo, _)| lo.y).unwrap_or(0.0),
     };
-    if let (Some(g), Some(faces), Some(edges)) = (garment.as_deref(), cache.garment_faces.clone(), cache.garment_edges.clone()) {
+    if let (Some(g), Some(faces), Some(edges)) = (
+        garment.as_ref(),
+        cache.garment_faces.clone(),
+        cache.garment_edges.clone(),
+    ) {
         let predicted = match avatar.motions.get(motion_index) {
             Some(m) => state.preview.garment_positions(
                 &avatar,
@@ -86,17 +101,25 @@ pub fn build_frame(state: &mut AppState) -> SceneFrame {
         if state.draw.heat_map {
             let strains = edge_strains(&edges, &cache.rest_lengths, &mesh.positions);
             let per_vertex = vertex_values_from_edges(mesh.positions.len(), &edges, &strains);
-            mesh.colors = Some(per_vertex.iter().map(|&s| heat_color(s, HEAT_MAX_STRAIN)).collect());
+            mesh.colors = Some(
+                per_vertex
+                    .iter()
+                    .map(|&s| heat_color(s, HEAT_MAX_STRAIN))
+                    .collect(),
+            );
         }
         if state.draw.collision_points {
             match PosedBody::new(body_positions.clone(), &body_faces) {
                 Ok(body) => {
-                    let skip: std::collections::HashSet<u32> = g.no_collide.iter().copied().collect();
+                    let skip: std::collections::HashSet<u32> =
+                        g.no_collide.iter().copied().collect();
                     frame.collision_points = mesh
                         .positions
                         .iter()
                         .enumerate()
-                        .filter(|(i, p)| !skip.contains(&(*i as u32)) && body.signed_distance(p) < 0.0)
+                        .filter(|(i, p)| {
+                            !skip.contains(&(*i as u32)) && body.signed_distance(p) < 0.0
+                        })
                         .map(|(_, p)| *p)
                         .collect();
                 }
@@ -105,7 +128,11 @@ pub fn build_frame(state: &mut AppState) -> SceneFrame {
         }
         frame.garment = Some(mesh);
     }
-    frame.body = Some(MeshFrame::new(body_positions, body_faces, Arc::from(Vec::new())));
+    frame.body = Some(MeshFrame::new(
+        body_positions,
+        body_faces,
+        Arc::from(Vec::new()),
+    ));
     state.topology = cache;
     frame
 }
@@ -116,7 +143,11 @@ mod tests {
 
     #[test]
     fn strains_are_relative_and_guarded() {
-        let p = [Vec3::zeros(), Vec3::new(1.1, 0.0, 0.0), Vec3::new(0.0, 0.9, 0.0)];
+        let p = [
+            Vec3::zeros(),
+            Vec3::new(1.1, 0.0, 0.0),
+            Vec3::new(0.0, 0.9, 0.0),
+        ];
         let s = edge_strains(&[[0, 1], [0, 2], [1, 7], [0, 0]], &[1.0, 1.0, 1.0, 0.0], &p);
         assert!((s[0] - 0.1).abs() < 1e-6 && (s[1] - 0.1).abs() < 1e-6);
         assert_eq!(&s[2..], &[0.0, 0.0]);

@@ -19,18 +19,31 @@ pub struct Loaded<T> {
 
 /// Lower-case extension of `path` ("" when it has none).
 pub fn extension(path: &Path) -> String {
-    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
+    path.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default()
 }
 
 /// Loads a skinned avatar (glTF/GLB) with its animations resampled to `fps`.
 pub fn load_avatar(path: &Path, fps: f32) -> Result<Loaded<Arc<Avatar>>, String> {
     match extension(path).as_str() {
         "glb" | "gltf" => {}
-        other => return Err(format!("unsupported avatar file type '{other}' (expected glb or gltf): {}", path.display())),
+        other => {
+            return Err(format!(
+                "unsupported avatar file type '{other}' (expected glb or gltf): {}",
+                path.display()
+            ));
+        }
     }
-    let options = ImportOptions { fps, ..Default::default() };
+    let options = ImportOptions {
+        fps,
+        ..Default::default()
+    };
     let loaded = crate::io::load_avatar(path, &options).map_err(|e| e.to_string())?;
-    Ok(Loaded { value: Arc::new(loaded.avatar), warnings: loaded.warnings })
+    Ok(Loaded {
+        value: Arc::new(loaded.avatar),
+        warnings: loaded.warnings,
+    })
 }
 
 /// Loads a garment template (OBJ or glTF/GLB, already in the avatar's rest pose) and binds it
@@ -40,25 +53,50 @@ pub fn load_garment(path: &Path, avatar: &Avatar) -> Result<Loaded<Arc<Garment>>
     let loaded = match extension(path).as_str() {
         "obj" => crate::io::load_obj(path, &options),
         "glb" | "gltf" => crate::io::load_gltf_mesh(path, &options),
-        other => return Err(format!("unsupported garment file type '{other}' (expected obj, glb or gltf): {}", path.display())),
+        other => {
+            return Err(format!(
+                "unsupported garment file type '{other}' (expected obj, glb or gltf): {}",
+                path.display()
+            ));
+        }
     }
     .map_err(|e| e.to_string())?;
     let name = loaded.name.to_ascii_lowercase();
-    let loose = ["skirt", "dress", "gown", "robe"].iter().any(|k| name.contains(k));
-    let garment_options = GarmentOptions { smoothing_passes: if loose { 30 } else { 3 }, ..Default::default() };
-    let garment = Garment::new(loaded.name.clone(), loaded.mesh, avatar, &garment_options).map_err(|e| format!("{e}: {}", path.display()))?;
+    let loose = ["skirt", "dress", "gown", "robe"]
+        .iter()
+        .any(|k| name.contains(k));
+    let garment_options = GarmentOptions {
+        smoothing_passes: if loose { 30 } else { 3 },
+        ..Default::default()
+    };
+    let garment = Garment::new(loaded.name.clone(), loaded.mesh, avatar, &garment_options)
+        .map_err(|e| format!("{e}: {}", path.display()))?;
     let mut warnings = loaded.warnings;
     warnings.extend(garment.warnings.iter().cloned());
-    Ok(Loaded { value: Arc::new(garment), warnings })
+    Ok(Loaded {
+        value: Arc::new(garment),
+        warnings,
+    })
 }
 
 /// Loads a BVH motion and retargets it onto `avatar`'s skeleton at `fps`.
 pub fn load_motion(path: &Path, avatar: &Avatar, fps: f32) -> Result<Loaded<Motion>, String> {
     if extension(path) != "bvh" {
-        return Err(format!("unsupported motion file type '{}' (expected bvh): {}", extension(path), path.display()));
+        return Err(format!(
+            "unsupported motion file type '{}' (expected bvh): {}",
+            extension(path),
+            path.display()
+        ));
     }
     let bvh = crate::io::load_bvh(path).map_err(|e| e.to_string())?;
-    let options = RetargetOptions { fps, ..Default::default() };
-    let (motion, warnings) = crate::io::retarget_bvh(&bvh, &avatar.skeleton, &options).map_err(|e| e.to_string())?;
-    Ok(Loaded { value: motion, warnings })
+    let options = RetargetOptions {
+        fps,
+        ..Default::default()
+    };
+    let (motion, warnings) =
+        crate::io::retarget_bvh(&bvh, &avatar.skeleton, &options).map_err(|e| e.to_string())?;
+    Ok(Loaded {
+        value: motion,
+        warnings,
+    })
 }

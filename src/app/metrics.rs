@@ -32,7 +32,13 @@ pub enum Metric {
 
 impl Metric {
     /// All metrics in display order.
-    pub const ALL: [Metric; 5] = [Metric::Strain, Metric::Bending, Metric::Collision, Metric::Gravity, Metric::Inertia];
+    pub const ALL: [Metric; 5] = [
+        Metric::Strain,
+        Metric::Bending,
+        Metric::Collision,
+        Metric::Gravity,
+        Metric::Inertia,
+    ];
 
     /// Label with unit, for legends and titles.
     pub fn label(self) -> &'static str {
@@ -77,7 +83,12 @@ pub fn records(history: &MetricHistory, split: Split) -> &[MetricRecord] {
 
 /// `[x, y]` points of `metric` on `split` against `x_axis`, thinned to at most
 /// [`MAX_PLOT_POINTS`] (always keeping the latest); non-finite values are skipped.
-pub fn series(history: &MetricHistory, split: Split, metric: Metric, x_axis: XAxis) -> Vec<[f64; 2]> {
+pub fn series(
+    history: &MetricHistory,
+    split: Split,
+    metric: Metric,
+    x_axis: XAxis,
+) -> Vec<[f64; 2]> {
     let all = records(history, split);
     let stride = all.len().div_ceil(MAX_PLOT_POINTS).max(1);
     let last = all.len().saturating_sub(1);
@@ -100,7 +111,13 @@ mod tests {
     use super::*;
 
     fn record(step: u64) -> MetricRecord {
-        MetricRecord { step, wall_secs: step as f64 * 0.5, strain: 1.0 / (step as f64 + 1.0), collision_pct: f64::NAN, ..Default::default() }
+        MetricRecord {
+            step,
+            wall_secs: step as f64 * 0.5,
+            strain: 1.0 / (step as f64 + 1.0),
+            collision_pct: f64::NAN,
+            ..Default::default()
+        }
     }
 
     #[test]
@@ -108,10 +125,19 @@ mod tests {
         let mut h = MetricHistory::default();
         h.train.extend((0..4).map(record));
         h.validation.push(record(10));
-        assert_eq!(series(&h, Split::Train, Metric::Strain, XAxis::Step)[1], [1.0, 0.5]);
-        assert_eq!(series(&h, Split::Train, Metric::Strain, XAxis::WallClock)[2], [1.0, 1.0 / 3.0]);
+        assert_eq!(
+            series(&h, Split::Train, Metric::Strain, XAxis::Step)[1],
+            [1.0, 0.5]
+        );
+        assert_eq!(
+            series(&h, Split::Train, Metric::Strain, XAxis::WallClock)[2],
+            [1.0, 1.0 / 3.0]
+        );
         assert!(series(&h, Split::Train, Metric::Collision, XAxis::Step).is_empty());
-        assert_eq!(series(&h, Split::Validation, Metric::Strain, XAxis::Step).len(), 1);
+        assert_eq!(
+            series(&h, Split::Validation, Metric::Strain, XAxis::Step).len(),
+            1
+        );
     }
 
     #[test]

@@ -18,6 +18,7 @@ pub mod playback;
 pub mod plot_panel;
 pub mod preview;
 pub mod project;
+pub mod project_io;
 pub mod state;
 pub mod timeline;
 pub mod training;
@@ -68,19 +69,29 @@ pub struct NeuralClothApp {
 impl NeuralClothApp {
     /// Builds the app on the default scene. `render_state` is eframe's (or kittest's) wgpu
     /// state; without it the viewport shows a notice.
-    pub fn new(ctx: &egui::Context, render_state: Option<&egui_wgpu::RenderState>, options: AppOptions) -> anyhow::Result<Self> {
+    pub fn new(
+        ctx: &egui::Context,
+        render_state: Option<&egui_wgpu::RenderState>,
+        options: AppOptions,
+    ) -> anyhow::Result<Self> {
         let parts = default_scene()?;
-        let recent = project::RecentFiles::load(options.recent_store.or_else(project::RecentFiles::default_store));
+        let recent = project::RecentFiles::load(
+            options
+                .recent_store
+                .or_else(project::RecentFiles::default_store),
+        );
         let state = AppState::new(parts, TrainingControl::new(options.launcher), recent);
         let repaint_ctx = ctx.clone();
+        let notify: Arc<dyn Fn() + Send + Sync> = Arc::new(move || repaint_ctx.request_repaint());
         let mut app = Self {
             state,
             viewport: Viewport::new(render_state),
             show_curves: true,
             exporter: options.exporter,
             framed_revision: 0,
-            notify: Arc::new(move || repaint_ctx.request_repaint()),
+            notify: notify.clone(),
         };
+        app.state.preview.set_notify(notify);
         if let Some(p) = options.project {
             app.state.open_project(&p, || default_scene().ok());
         }
@@ -108,18 +119,26 @@ impl NeuralClothApp {
         egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui));
         egui::Panel::bottom("status").show(ui, |ui| self.status_ui(ui));
         egui::Panel::bottom("timeline").show(ui, |ui| self.timeline_ui(ui));
-        egui::Panel::left("controls").default_size(270.0).show(ui, |ui| {
-            egui::ScrollArea::vertical().show(ui, |ui| {
-                self.scene_ui(ui);
-                self.fabric_ui(ui);
-                self.training_ui(ui);
-                self.effects_ui(ui);
+        egui::Panel::left("controls")
+            .default_size(300.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| {
+                    self.scene_ui(ui);
+                    self.motions_ui(ui);
+                    self.training_ui(ui);
+                    self.fabric_ui(ui);
+                    self.effects_ui(ui);
+                });
             });
-        });
         if self.show_curves {
-            egui::Panel::bottom("curves").resizable(true).default_size(170.0).show(ui, |ui| self.plot_ui(ui));
+            egui::Panel::bottom("curves")
+                .resizable(true)
+                .default_size(170.0)
+                .show(ui, |ui| self.plot_ui(ui));
         }
-        egui::CentralPanel::default().frame(egui::Frame::NONE).show(ui, |ui| self.viewport_ui(ui));
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE)
+            .show(ui, |ui| self.viewport_ui(ui));
         self.export_ui(ui);
     }
 
@@ -149,7 +168,9 @@ impl eframe::App for NeuralClothApp {
 pub fn run_app(options: AppOptions) -> anyhow::Result<()> {
     let native = eframe::NativeOptions {
         renderer: eframe::Renderer::Wgpu,
-        viewport: egui::ViewportBuilder::default().with_title("neural-cloth").with_inner_size([1280.0, 800.0]),
+        viewport: egui::ViewportBuilder::default()
+            .with_title("neural-cloth")
+            .with_inner_size([1280.0, 800.0]),
         ..Default::default()
     };
     let mut options = Some(options);

@@ -43,7 +43,10 @@ impl LoadKind {
 /// Asks the desktop's file dialog for a file (None when cancelled or when no dialog service
 /// exists, e.g. a bare Linux desktop; the typed-path field is the fallback).
 pub fn pick_file(kind: LoadKind) -> Option<PathBuf> {
-    rfd::FileDialog::new().set_title(kind.title()).add_filter(kind.title(), kind.extensions()).pick_file()
+    rfd::FileDialog::new()
+        .set_title(kind.title())
+        .add_filter(kind.title(), kind.extensions())
+        .pick_file()
 }
 
 impl NeuralClothApp {
@@ -56,150 +59,220 @@ impl NeuralClothApp {
         }
     }
 
-    /// One "Browse… / path / Load" row.
+    /// One "label, typed path, Load, Browse…" row.
     fn load_row(&mut self, ui: &mut egui::Ui, kind: LoadKind) {
-        let label = match kind {
-            LoadKind::Avatar => "Avatar",
-            LoadKind::Garment => "Garment",
-            LoadKind::Motion => "Motion",
+        let (label, hint) = match kind {
+            LoadKind::Avatar => ("Avatar", "avatar .glb/.gltf path"),
+            LoadKind::Garment => ("Garment", "garment .obj/.glb path"),
+            LoadKind::Motion => ("Motion", "motion .bvh path"),
         };
-        ui.horizontal(|ui| {
-            ui.label(label);
-            if ui.button("Browse…").on_hover_text(kind.title()).clicked() {
-                if let Some(path) = pick_file(kind) {
-                    self.load_file(kind, &path);
-                }
-            }
-        });
         ui.horizontal(|ui| {
             let typed = match kind {
                 LoadKind::Avatar => &mut self.state.typed.avatar,
                 LoadKind::Garment => &mut self.state.typed.garment,
                 LoadKind::Motion => &mut self.state.typed.motion,
             };
-            let edit = egui::TextEdit::singleline(typed).hint_text("or type a path").desired_width(170.0);
+            let edit = egui::TextEdit::singleline(typed)
+                .hint_text(hint)
+                .desired_width(120.0);
             let response = ui.add(edit);
             let enter = response.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
             let typed = typed.trim().to_string();
-            if (ui.button(format!("Load {}", label.to_lowercase())).clicked() || enter) && !typed.is_empty() {
+            if (ui
+                .button(format!("Load {}", label.to_lowercase()))
+                .clicked()
+                || enter)
+                && !typed.is_empty()
+            {
                 self.load_file(kind, &PathBuf::from(typed));
+            }
+            if ui.button("...").on_hover_text(kind.title()).clicked()
+                && let Some(path) = pick_file(kind)
+            {
+                self.load_file(kind, &path);
             }
         });
     }
 
-    /// Scene section: what is loaded, load rows, motion list.
+    /// Scene section: what is loaded and the load rows; the last load error, if any.
     pub fn scene_ui(&mut self, ui: &mut egui::Ui) {
-        egui::CollapsingHeader::new("Scene").default_open(true).show(ui, |ui| {
-            let avatar = self.state.scene.avatar.clone();
-            let garment_text = match &self.state.scene.garment {
-                Some(g) => format!("{} ({} vertices)", g.name, g.vertex_count()),
-                None => "none".into(),
-            };
-            ui.label(format!("Avatar: {} ({} joints)", avatar.name, avatar.skeleton.len()));
-            ui.label(format!("Garment: {garment_text}"));
-            self.load_row(ui, LoadKind::Avatar);
-            self.load_row(ui, LoadKind::Garment);
-            self.load_row(ui, LoadKind::Motion);
-            ui.separator();
-            ui.label("Motions");
-            let mut chosen = None;
-            for (k, m) in avatar.motions.iter().enumerate() {
-                let selected = k == self.state.playback.motion;
-                if ui.selectable_label(selected, format!("{} ({:.1} s)", m.name, m.duration_secs())).clicked() {
-                    chosen = Some(k);
+        egui::CollapsingHeader::new("Scene")
+            .default_open(true)
+            .show(ui, |ui| {
+                let avatar = self.state.scene.avatar.clone();
+                let garment_text = match &self.state.scene.garment {
+                    Some(g) => format!("{} ({} vertices)", g.name, g.vertex_count()),
+                    None => "none".into(),
+                };
+                ui.label(format!(
+                    "Avatar: {} ({} joints), garment: {garment_text}",
+                    avatar.name,
+                    avatar.skeleton.len()
+                ));
+                self.load_row(ui, LoadKind::Avatar);
+                self.load_row(ui, LoadKind::Garment);
+                self.load_row(ui, LoadKind::Motion);
+                if let Some(m) = self
+                    .state
+                    .messages
+                    .last()
+                    .filter(|m| m.level == Level::Error)
+                {
+                    ui.colored_label(egui::Color32::from_rgb(255, 100, 90), &m.text);
                 }
-            }
-            if avatar.motions.is_empty() {
-                ui.weak("no motions: load a BVH file");
-            }
-            if let Some(k) = chosen {
-                self.state.playback.select_motion(k, avatar.motions.len());
-            }
-        });
+            });
+    }
+
+    /// The motion list (click to show a motion on the timeline).
+    pub fn motions_ui(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Motions")
+            .default_open(true)
+            .show(ui, |ui| {
+                let avatar = self.state.scene.avatar.clone();
+                let mut chosen = None;
+                egui::ScrollArea::vertical()
+                    .id_salt("motion list")
+                    .max_height(92.0)
+                    .show(ui, |ui| {
+                        for (k, m) in avatar.motions.iter().enumerate() {
+                            let split = match self.state.scene.splits.get(k) {
+                                Some(crate::scene::Split::Validation) => " [validation]",
+                                Some(crate::scene::Split::Test) => " [test]",
+                                _ => "",
+                            };
+                            let selected = k == self.state.playback.motion;
+                            if ui
+                                .selectable_label(
+                                    selected,
+                                    format!("{} ({:.1} s){split}", m.name, m.duration_secs()),
+                                )
+                                .clicked()
+                            {
+                                chosen = Some(k);
+                            }
+                        }
+                    });
+                if avatar.motions.is_empty() {
+                    ui.weak("no motions: load a BVH file");
+                }
+                if let Some(k) = chosen {
+                    self.state.playback.select_motion(k, avatar.motions.len());
+                }
+            });
     }
 
     /// Fabric section: preset and the main material parameters.
     pub fn fabric_ui(&mut self, ui: &mut egui::Ui) {
-        egui::CollapsingHeader::new("Fabric").default_open(true).show(ui, |ui| {
-            let mut preset = None;
-            egui::ComboBox::from_label("preset").selected_text(self.state.fabric_preset.clone()).show_ui(ui, |ui| {
-                for name in PRESET_NAMES {
-                    if ui.selectable_label(self.state.fabric_preset == name, name).clicked() {
-                        preset = Some(name);
-                    }
+        egui::CollapsingHeader::new("Fabric")
+            .default_open(true)
+            .show(ui, |ui| {
+                let mut preset = None;
+                egui::ComboBox::from_label("preset")
+                    .selected_text(self.state.fabric_preset.clone())
+                    .show_ui(ui, |ui| {
+                        for name in PRESET_NAMES {
+                            if ui
+                                .selectable_label(self.state.fabric_preset == name, name)
+                                .clicked()
+                            {
+                                preset = Some(name);
+                            }
+                        }
+                    });
+                if let Some(name) = preset {
+                    self.state.apply_preset(name);
+                }
+                let f = &mut self.state.fabric;
+                let mut changed = false;
+                changed |= ui
+                    .add(
+                        egui::Slider::new(&mut f.stretch_stiffness, 0.1..=100.0)
+                            .logarithmic(true)
+                            .text("stretch (N/m)"),
+                    )
+                    .changed();
+                changed |= ui
+                    .add(egui::Slider::new(&mut f.shear_stiffness, 0.0..=50.0).text("shear (N/m)"))
+                    .changed();
+                changed |= ui
+                    .add(
+                        egui::Slider::new(&mut f.density_kg_per_m2, 0.01..=1.0)
+                            .logarithmic(true)
+                            .text("density (kg/m²)"),
+                    )
+                    .changed();
+                changed |= ui
+                    .add(
+                        egui::Slider::new(&mut f.bending_stiffness, 1e-7..=1e-2)
+                            .logarithmic(true)
+                            .text("bending (N·m)")
+                            .custom_formatter(|v, _| format!("{v:.1e}")),
+                    )
+                    .changed();
+                let mut eps_mm = f.collision_threshold_m * 1000.0;
+                if ui
+                    .add(egui::Slider::new(&mut eps_mm, 0.0..=20.0).text("collision ε (mm)"))
+                    .changed()
+                {
+                    f.collision_threshold_m = eps_mm / 1000.0;
+                    changed = true;
+                }
+                if changed {
+                    self.state.fabric_preset = "custom".into();
+                    self.state.fabric_changed();
                 }
             });
-            if let Some(name) = preset {
-                self.state.apply_preset(name);
-            }
-            let f = &mut self.state.fabric;
-            let mut changed = false;
-            changed |= ui.add(egui::Slider::new(&mut f.stretch_stiffness, 0.1..=100.0).logarithmic(true).text("stretch (N/m)")).changed();
-            changed |= ui.add(egui::Slider::new(&mut f.shear_stiffness, 0.0..=50.0).text("shear (N/m)")).changed();
-            changed |= ui.add(egui::Slider::new(&mut f.density_kg_per_m2, 0.01..=1.0).logarithmic(true).text("density (kg/m²)")).changed();
-            changed |= ui
-                .add(egui::Slider::new(&mut f.bending_stiffness, 1e-7..=1e-2).logarithmic(true).text("bending (N·m)").custom_formatter(|v, _| format!("{v:.1e}")))
-                .changed();
-            let mut eps_mm = f.collision_threshold_m * 1000.0;
-            if ui.add(egui::Slider::new(&mut eps_mm, 0.0..=20.0).text("collision ε (mm)")).changed() {
-                f.collision_threshold_m = eps_mm / 1000.0;
-                changed = true;
-            }
-            if changed {
-                self.state.fabric_preset = "custom".into();
-                self.state.fabric_changed();
-            }
-        });
     }
 
     /// Effects and viewport overlay toggles.
     pub fn effects_ui(&mut self, ui: &mut egui::Ui) {
-        egui::CollapsingHeader::new("Effects & view").default_open(false).show(ui, |ui| {
-            let active = self.state.training.state().is_active();
-            ui.add_enabled_ui(!active, |ui| {
-                let e = &mut self.state.effects;
-                let mut changed = false;
-                changed |= ui.checkbox(&mut e.gravity, "gravity").changed();
-                changed |= ui.checkbox(&mut e.bending, "bending").changed();
-                changed |= ui.checkbox(&mut e.collision, "collision").changed();
-                changed |= ui.checkbox(&mut e.dynamics, "dynamics (inertia)").changed();
-                changed |= ui.checkbox(&mut e.pinning, "pinning").changed();
-                if changed {
-                    // Dynamics changes the network layout of the preview.
-                    self.state.preview.reset_scene();
-                    self.state.scene.revision += 1;
+        egui::CollapsingHeader::new("Effects & view")
+            .default_open(false)
+            .show(ui, |ui| {
+                let active = self.state.training.state().is_active();
+                ui.add_enabled_ui(!active, |ui| {
+                    let e = &mut self.state.effects;
+                    let mut changed = false;
+                    changed |= ui.checkbox(&mut e.gravity, "gravity").changed();
+                    changed |= ui.checkbox(&mut e.bending, "bending").changed();
+                    changed |= ui.checkbox(&mut e.collision, "collision").changed();
+                    changed |= ui.checkbox(&mut e.dynamics, "dynamics (inertia)").changed();
+                    changed |= ui.checkbox(&mut e.pinning, "pinning").changed();
+                    if changed {
+                        // Dynamics changes the network layout of the preview.
+                        self.state.preview.reset_scene();
+                        self.state.scene.revision += 1;
+                    }
+                });
+                ui.separator();
+                let d = &mut self.state.draw;
+                ui.checkbox(&mut d.heat_map, "strain heat-map");
+                ui.checkbox(&mut d.collision_points, "collision points");
+                ui.checkbox(&mut d.wireframe, "wireframe");
+                ui.checkbox(&mut d.show_body, "body");
+                ui.checkbox(&mut d.show_garment, "garment");
+                ui.checkbox(&mut d.grid, "ground grid");
+                ui.checkbox(&mut self.viewport.follow, "camera follows body");
+                ui.checkbox(&mut self.viewport.show_timing, "frame time");
+                if ui.button("Reset camera").clicked() {
+                    self.viewport.reset_camera();
                 }
             });
-            ui.separator();
-            let d = &mut self.state.draw;
-            ui.checkbox(&mut d.heat_map, "strain heat-map");
-            ui.checkbox(&mut d.collision_points, "collision points");
-            ui.checkbox(&mut d.wireframe, "wireframe");
-            ui.checkbox(&mut d.show_body, "body");
-            ui.checkbox(&mut d.show_garment, "garment");
-            ui.checkbox(&mut d.grid, "ground grid");
-            ui.checkbox(&mut self.viewport.show_timing, "frame time");
-            if ui.button("Reset camera").clicked() {
-                self.viewport.camera.reset();
-            }
-        });
     }
 
     /// The status line: the latest message, coloured by severity.
     pub fn status_ui(&mut self, ui: &mut egui::Ui) {
-        ui.horizontal(|ui| {
-            match self.state.messages.last() {
-                Some(m) => {
-                    let color = match m.level {
-                        Level::Info => ui.visuals().text_color(),
-                        Level::Warning => egui::Color32::from_rgb(230, 180, 60),
-                        Level::Error => egui::Color32::from_rgb(255, 100, 90),
-                    };
-                    ui.colored_label(color, &m.text);
-                }
-                None => {
-                    ui.weak("ready");
-                }
+        ui.horizontal(|ui| match self.state.messages.last() {
+            Some(m) => {
+                let color = match m.level {
+                    Level::Info => ui.visuals().text_color(),
+                    Level::Warning => egui::Color32::from_rgb(230, 180, 60),
+                    Level::Error => egui::Color32::from_rgb(255, 100, 90),
+                };
+                ui.colored_label(color, &m.text);
+            }
+            None => {
+                ui.weak("ready");
             }
         });
     }

@@ -22,7 +22,13 @@ pub struct Playback {
 
 impl Default for Playback {
     fn default() -> Self {
-        Self { motion: 0, time_secs: 0.0, playing: true, speed: 1.0, looping: true }
+        Self {
+            motion: 0,
+            time_secs: 0.0,
+            playing: true,
+            speed: 1.0,
+            looping: true,
+        }
     }
 }
 
@@ -30,7 +36,11 @@ impl Playback {
     /// Advances by `dt_secs` of wall-clock time for a motion lasting `duration_secs`; returns
     /// true when the shown time changed.
     pub fn advance(&mut self, dt_secs: f32, duration_secs: f32) -> bool {
-        let duration = if duration_secs.is_finite() { duration_secs.max(0.0) } else { 0.0 };
+        let duration = if duration_secs.is_finite() {
+            duration_secs.max(0.0)
+        } else {
+            0.0
+        };
         if !self.playing || duration <= 0.0 || !(dt_secs.is_finite() && dt_secs > 0.0) {
             return false;
         }
@@ -52,8 +62,16 @@ impl Playback {
 
     /// Jumps to `time_secs`, clamped to `[0, duration_secs]` (NaN goes to 0).
     pub fn seek(&mut self, time_secs: f32, duration_secs: f32) {
-        let duration = if duration_secs.is_finite() { duration_secs.max(0.0) } else { 0.0 };
-        self.time_secs = if time_secs.is_finite() { time_secs.clamp(0.0, duration) } else { 0.0 };
+        let duration = if duration_secs.is_finite() {
+            duration_secs.max(0.0)
+        } else {
+            0.0
+        };
+        self.time_secs = if time_secs.is_finite() {
+            time_secs.clamp(0.0, duration)
+        } else {
+            0.0
+        };
     }
 
     /// Shows motion `index` (clamped to `count` motions) from its start.
@@ -64,7 +82,11 @@ impl Playback {
 
     /// Frame index at `fps` for the current time.
     pub fn frame_index(&self, fps: f32) -> usize {
-        if fps.is_finite() && fps > 0.0 { (self.time_secs * fps).round().max(0.0) as usize } else { 0 }
+        if fps.is_finite() && fps > 0.0 {
+            (self.time_secs * fps).round().max(0.0) as usize
+        } else {
+            0
+        }
     }
 }
 
@@ -74,7 +96,10 @@ mod tests {
 
     #[test]
     fn advance_loops_and_respects_speed() {
-        let mut p = Playback { speed: 2.0, ..Default::default() };
+        let mut p = Playback {
+            speed: 2.0,
+            ..Default::default()
+        };
         assert!(p.advance(0.1, 1.0));
         assert!((p.time_secs - 0.2).abs() < 1e-6);
         p.seek(0.95, 1.0);
@@ -86,7 +111,10 @@ mod tests {
 
     #[test]
     fn without_looping_it_stops_at_the_end() {
-        let mut p = Playback { looping: false, ..Default::default() };
+        let mut p = Playback {
+            looping: false,
+            ..Default::default()
+        };
         p.seek(0.9, 1.0);
         p.advance(0.2, 1.0);
         assert_eq!(p.time_secs, 1.0);

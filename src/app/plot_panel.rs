@@ -1,7 +1,7 @@
 //! The training section (window, fps, train/pause/resume/stop/reset, progress) and the live
 //! metric curves (egui_plot; train and validation; x axis step or wall-clock time).
 
-use egui_plot::{Legend, Line, LineStyle, Plot};
+use egui_plot::{Line, LineStyle, Plot};
 
 use super::NeuralClothApp;
 use super::metrics::{Metric, Split, XAxis, series};
@@ -19,57 +19,88 @@ pub const METRIC_COLORS: [egui::Color32; 5] = [
 impl NeuralClothApp {
     /// Training settings, the control buttons and the progress indicator.
     pub fn training_ui(&mut self, ui: &mut egui::Ui) {
-        egui::CollapsingHeader::new("Training").default_open(true).show(ui, |ui| {
-            let state = self.state.training.state().clone();
-            let cfg = &mut self.state.train_config;
-            if ui.add(egui::Slider::new(&mut cfg.window_secs, 0.05..=4.0).text("window (s)")).changed() {
-                self.state.window_changed();
-            }
-            ui.add_enabled(!state.is_active(), egui::Slider::new(&mut self.state.train_config.fps, 5.0..=120.0).integer().text("fps"));
-            ui.horizontal_wrapped(|ui| {
-                let can_start = !state.is_active();
-                if ui.add_enabled(can_start, egui::Button::new("Train")).clicked() {
-                    self.state.start_training(self.notifier());
+        egui::CollapsingHeader::new("Training")
+            .default_open(true)
+            .show(ui, |ui| {
+                let state = self.state.training.state().clone();
+                let cfg = &mut self.state.train_config;
+                if ui
+                    .add(egui::Slider::new(&mut cfg.window_secs, 0.05..=4.0).text("window (s)"))
+                    .changed()
+                {
+                    self.state.window_changed();
                 }
-                match state {
-                    TrainingState::Running => {
-                        if ui.button("Pause").clicked() {
-                            self.state.training.pause();
+                ui.add_enabled(
+                    !state.is_active(),
+                    egui::Slider::new(&mut self.state.train_config.fps, 5.0..=120.0)
+                        .integer()
+                        .text("fps"),
+                );
+                ui.horizontal_wrapped(|ui| {
+                    let can_start = !state.is_active();
+                    if ui
+                        .add_enabled(can_start, egui::Button::new("Train"))
+                        .clicked()
+                    {
+                        self.state.start_training(self.notifier());
+                    }
+                    match state {
+                        TrainingState::Running => {
+                            if ui.button("Pause").clicked() {
+                                self.state.training.pause();
+                            }
+                        }
+                        TrainingState::Paused => {
+                            if ui.button("Resume").clicked() {
+                                self.state.training.resume();
+                            }
+                        }
+                        _ => {
+                            ui.add_enabled(false, egui::Button::new("Pause"));
                         }
                     }
-                    TrainingState::Paused => {
-                        if ui.button("Resume").clicked() {
-                            self.state.training.resume();
-                        }
+                    if ui
+                        .add_enabled(
+                            matches!(state, TrainingState::Running | TrainingState::Paused),
+                            egui::Button::new("Stop"),
+                        )
+                        .clicked()
+                    {
+                        self.state.training.stop();
                     }
-                    _ => {
-                        ui.add_enabled(false, egui::Button::new("Pause"));
+                    if ui
+                        .button("Reset")
+                        .on_hover_text("Stop and forget the run (curves, preview weights)")
+                        .clicked()
+                    {
+                        self.state.training.reset();
+                        self.state.preview.reset_scene();
                     }
+                });
+                let p = self.state.training.progress;
+                ui.label(format!("State: {}", state.label()));
+                let fraction = match p.max_steps {
+                    Some(m) if m > 0 => (p.step as f32 / m as f32).clamp(0.0, 1.0),
+                    _ => 0.0,
+                };
+                let text = format!(
+                    "step {} · {:.1} steps/s · {:.0} s",
+                    p.step, p.steps_per_sec, p.elapsed_secs
+                );
+                ui.add(
+                    egui::ProgressBar::new(fraction)
+                        .text(text)
+                        .animate(state == TrainingState::Running),
+                );
+                if let TrainingState::Finished(Err(e)) = &state {
+                    ui.colored_label(egui::Color32::from_rgb(255, 100, 90), e);
                 }
-                if ui.add_enabled(matches!(state, TrainingState::Running | TrainingState::Paused), egui::Button::new("Stop")).clicked() {
-                    self.state.training.stop();
-                }
-                if ui.button("Reset").on_hover_text("Stop and forget the run (curves, preview weights)").clicked() {
-                    self.state.training.reset();
-                    self.state.preview.reset_scene();
-                }
+                ui.weak(format!("preview: {}", self.state.preview.describe()));
             });
-            let p = self.state.training.progress;
-            ui.label(format!("State: {}", state.label()));
-            let fraction = match p.max_steps {
-                Some(m) if m > 0 => (p.step as f32 / m as f32).clamp(0.0, 1.0),
-                _ => 0.0,
-            };
-            let text = format!("step {} · {:.1} steps/s · {:.0} s", p.step, p.steps_per_sec, p.elapsed_secs);
-            ui.add(egui::ProgressBar::new(fraction).text(text).animate(state == TrainingState::Running));
-            if let TrainingState::Finished(Err(e)) = &state {
-                ui.colored_label(egui::Color32::from_rgb(255, 100, 90), e);
-            }
-            ui.weak(format!("preview: {}", self.state.preview.describe()));
-        });
     }
 
-    /// Metric curves of the current run.
+    /// Metric curves of the current run: one small plot per shown metric (each with its own
+    /// scale), training solid and validation dashed.
     pub fn plot_ui(&mut self, ui: &mut egui::Ui) {
         let curves = &mut self.state.curves;
         ui.horizontal_wrapped(|ui| {
@@ -79,10 +110,11 @@ impl NeuralClothApp {
                     ui.checkbox(shown, metric.label());
                 }
             }
-            ui.checkbox(&mut curves.validation, "validation");
+            ui.checkbox(&mut curves.validation, "validation (dashed)");
             ui.separator();
+            ui.label("x:");
             ui.selectable_value(&mut curves.x_axis, XAxis::Step, "step");
-            ui.selectable_value(&mut curves.x_axis, XAxis::WallClock, "time (s)");
+            ui.selectable_value(&mut curves.x_axis, XAxis::WallClock, "wall-clock (s)");
         });
         let history = &self.state.training.history;
         if history.train.is_empty() && history.validation.is_empty() {
@@ -92,28 +124,43 @@ impl NeuralClothApp {
             return;
         }
         let x_axis = curves.x_axis;
-        let x_label = match x_axis {
-            XAxis::Step => "step",
-            XAxis::WallClock => "time (s)",
-        };
-        let mut lines = Vec::new();
-        for (k, metric) in Metric::ALL.iter().enumerate() {
-            if !curves.is_shown(*metric) {
-                continue;
-            }
-            let color = METRIC_COLORS.get(k).copied().unwrap_or(egui::Color32::GRAY);
-            lines.push(Line::new(metric.label(), series(history, Split::Train, *metric, x_axis)).color(color).width(1.5));
-            if curves.validation {
-                let points = series(history, Split::Validation, *metric, x_axis);
-                if !points.is_empty() {
-                    let name = format!("{} (validation)", metric.label());
-                    lines.push(Line::new(name, points).color(color).style(LineStyle::dashed_dense()).width(1.5));
-                }
-            }
+        let shown: Vec<(usize, Metric)> = Metric::ALL
+            .iter()
+            .copied()
+            .enumerate()
+            .filter(|(_, m)| curves.is_shown(*m))
+            .collect();
+        if shown.is_empty() {
+            return;
         }
-        Plot::new("metric curves").legend(Legend::default()).x_axis_label(x_label).show(ui, |plot| {
-            for line in lines {
-                plot.line(line);
+        let validation = curves.validation;
+        ui.columns(shown.len(), |columns| {
+            for (column, (k, metric)) in columns.iter_mut().zip(&shown) {
+                let color = METRIC_COLORS
+                    .get(*k)
+                    .copied()
+                    .unwrap_or(egui::Color32::GRAY);
+                column.vertical_centered(|ui| ui.small(metric.label()));
+                let train = Line::new("train", series(history, Split::Train, *metric, x_axis))
+                    .color(color)
+                    .width(1.5);
+                let val_points = series(history, Split::Validation, *metric, x_axis);
+                let height = column.available_height().max(40.0);
+                Plot::new(metric.label())
+                    .height(height)
+                    .y_axis_min_width(28.0)
+                    .allow_scroll(false)
+                    .show(column, |plot| {
+                        plot.line(train);
+                        if validation && !val_points.is_empty() {
+                            plot.line(
+                                Line::new("validation", val_points)
+                                    .color(color)
+                                    .style(LineStyle::dashed_dense())
+                                    .width(1.5),
+                            );
+                        }
+                    });
             }
         });
     }

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::physics::FabricParams;
-use crate::scene::Effects;
 use crate::render::DrawOptions;
+use crate::scene::Effects;
 use crate::train::TrainConfig;
 
 use super::metrics::XAxis;
@@ -80,7 +80,12 @@ pub struct ViewSettings {
 
 impl Default for ViewSettings {
     fn default() -> Self {
-        Self { w: 1.0, draw: DrawOptions::default(), x_axis: XAxis::Step, playback_speed: 1.0 }
+        Self {
+            w: 1.0,
+            draw: DrawOptions::default(),
+            x_axis: XAxis::Step,
+            playback_speed: 1.0,
+        }
     }
 }
 
@@ -120,17 +125,26 @@ impl Default for ProjectFile {
 
 /// `path` relative to `base` when it lies below it, else unchanged.
 fn relative_to(path: &Path, base: &Path) -> PathBuf {
-    path.strip_prefix(base).map(Path::to_path_buf).unwrap_or_else(|_| path.to_path_buf())
+    path.strip_prefix(base)
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|_| path.to_path_buf())
 }
 
 /// `path` resolved against `base` when relative.
 fn resolve(path: &Path, base: &Path) -> PathBuf {
-    if path.is_relative() { base.join(path) } else { path.to_path_buf() }
+    if path.is_relative() {
+        base.join(path)
+    } else {
+        path.to_path_buf()
+    }
 }
 
 /// Writes `bytes` to a temporary file beside `path`, then renames it over `path`.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ProjectError> {
-    let err = |source| ProjectError::Write { source, path: path.to_path_buf() };
+    let err = |source| ProjectError::Write {
+        source,
+        path: path.to_path_buf(),
+    };
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(err)?;
     }
@@ -148,7 +162,13 @@ impl ProjectFile {
     /// Applies `f` to every path in the project.
     fn map_paths(&mut self, f: impl Fn(&Path) -> PathBuf) {
         let s = &mut self.scene;
-        for p in s.avatar.iter_mut().chain(s.garment.iter_mut()).chain(s.motions.iter_mut()).chain(self.run_dir.iter_mut()) {
+        for p in s
+            .avatar
+            .iter_mut()
+            .chain(s.garment.iter_mut())
+            .chain(s.motions.iter_mut())
+            .chain(self.run_dir.iter_mut())
+        {
             *p = f(p);
         }
     }
@@ -163,22 +183,45 @@ impl ProjectFile {
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let base = std::path::absolute(&base).unwrap_or(base);
         let mut copy = self.clone();
-        copy.map_paths(|p| relative_to(&std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()), &base));
-        let text = copy.to_toml().map_err(|reason| ProjectError::Parse { reason, path: path.to_path_buf() })?;
+        copy.map_paths(|p| {
+            relative_to(
+                &std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()),
+                &base,
+            )
+        });
+        let text = copy.to_toml().map_err(|reason| ProjectError::Parse {
+            reason,
+            path: path.to_path_buf(),
+        })?;
         write_atomic(path, format!("# neural-cloth project\n{text}").as_bytes())
     }
 
     /// Reads a project, checks its version and values, and resolves its paths against its
     /// folder.
     pub fn open(path: &Path) -> Result<Self, ProjectError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ProjectError::Read { source, path: path.to_path_buf() })?;
-        let parse = |reason: String| ProjectError::Parse { reason, path: path.to_path_buf() };
+        let text = std::fs::read_to_string(path).map_err(|source| ProjectError::Read {
+            source,
+            path: path.to_path_buf(),
+        })?;
+        let parse = |reason: String| ProjectError::Parse {
+            reason,
+            path: path.to_path_buf(),
+        };
         let mut project: ProjectFile = toml::from_str(&text).map_err(|e| parse(e.to_string()))?;
         if project.version != PROJECT_VERSION {
-            return Err(parse(format!("version {} (this build reads version {PROJECT_VERSION})", project.version)));
+            return Err(parse(format!(
+                "version {} (this build reads version {PROJECT_VERSION})",
+                project.version
+            )));
         }
-        project.fabric.validate().map_err(|e| parse(format!("fabric: {e}")))?;
-        project.training.validate().map_err(|e| parse(format!("training: {e}")))?;
+        project
+            .fabric
+            .validate()
+            .map_err(|e| parse(format!("fabric: {e}")))?;
+        project
+            .training
+            .validate()
+            .map_err(|e| parse(format!("training: {e}")))?;
         let w = project.view.w;
         if !(w.is_finite() && (0.0..=2.0).contains(&w)) {
             return Err(parse(format!("view.w = {w} is outside [0, 2]")));
@@ -215,7 +258,10 @@ impl RecentFiles {
             .and_then(|p| std::fs::read(p).ok())
             .and_then(|bytes| serde_json::from_slice::<Vec<PathBuf>>(&bytes).ok())
             .unwrap_or_default();
-        let mut recent = Self { paths: Vec::new(), store };
+        let mut recent = Self {
+            paths: Vec::new(),
+            store,
+        };
         for p in paths.into_iter().rev() {
             recent.insert(p);
         }
@@ -233,8 +279,11 @@ impl RecentFiles {
         self.insert(std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()));
         match &self.store {
             Some(store) => {
-                let json = serde_json::to_vec_pretty(&self.paths)
-                    .map_err(|e| ProjectError::Parse { reason: e.to_string(), path: store.clone() })?;
+                let json =
+                    serde_json::to_vec_pretty(&self.paths).map_err(|e| ProjectError::Parse {
+                        reason: e.to_string(),
+                        path: store.clone(),
+                    })?;
                 write_atomic(store, &json)
             }
             None => Ok(()),
@@ -260,7 +309,10 @@ mod tests {
         let file = dir.path().join("my.ncproj.toml");
         p.save(&file).unwrap();
         let text = std::fs::read_to_string(&file).unwrap();
-        assert!(text.contains("garments/shirt.obj") && !text.contains(&*dir.path().to_string_lossy()), "{text}");
+        assert!(
+            text.contains("garments/shirt.obj") && !text.contains(&*dir.path().to_string_lossy()),
+            "{text}"
+        );
         let back = ProjectFile::open(&file).unwrap();
         assert_eq!(back, p);
     }
@@ -273,10 +325,21 @@ mod tests {
         let err = ProjectFile::open(&file).unwrap_err().to_string();
         assert!(err.contains("view.w") && err.ends_with("bad.toml"), "{err}");
         std::fs::write(&file, "version = 99\n").unwrap();
-        assert!(ProjectFile::open(&file).unwrap_err().to_string().contains("version 99"));
+        assert!(
+            ProjectFile::open(&file)
+                .unwrap_err()
+                .to_string()
+                .contains("version 99")
+        );
         std::fs::write(&file, "nonsense = [\n").unwrap();
-        assert!(matches!(ProjectFile::open(&file), Err(ProjectError::Parse { .. })));
-        assert!(matches!(ProjectFile::open(&dir.path().join("missing.toml")), Err(ProjectError::Read { .. })));
+        assert!(matches!(
+            ProjectFile::open(&file),
+            Err(ProjectError::Parse { .. })
+        ));
+        assert!(matches!(
+            ProjectFile::open(&dir.path().join("missing.toml")),
+            Err(ProjectError::Read { .. })
+        ));
     }
 
     #[test]

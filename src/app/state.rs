@@ -15,7 +15,7 @@ use super::loading;
 use super::metrics::{Metric, XAxis};
 use super::playback::Playback;
 use super::preview::Preview;
-use super::project::{ProjectError, ProjectFile, RecentFiles, SceneSources, ViewSettings};
+use super::project::{RecentFiles, SceneSources};
 use super::training::{TrainingControl, TrainingRequest};
 
 /// Severity of a message in the status area.
@@ -122,14 +122,23 @@ pub struct CurveSettings {
 
 impl Default for CurveSettings {
     fn default() -> Self {
-        Self { shown: [true, true, true, false, false], validation: true, x_axis: XAxis::Step }
+        Self {
+            shown: [true, true, true, false, false],
+            validation: true,
+            x_axis: XAxis::Step,
+        }
     }
 }
 
 impl CurveSettings {
     /// Whether `metric` is shown.
     pub fn is_shown(&self, metric: Metric) -> bool {
-        Metric::ALL.iter().position(|m| *m == metric).and_then(|k| self.shown.get(k)).copied().unwrap_or(false)
+        Metric::ALL
+            .iter()
+            .position(|m| *m == metric)
+            .and_then(|k| self.shown.get(k))
+            .copied()
+            .unwrap_or(false)
     }
 }
 
@@ -179,7 +188,10 @@ impl std::fmt::Debug for AppState {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("AppState")
             .field("avatar", &self.scene.avatar.name)
-            .field("garment", &self.scene.garment.as_ref().map(|g| g.name.clone()))
+            .field(
+                "garment",
+                &self.scene.garment.as_ref().map(|g| g.name.clone()),
+            )
             .field("w", &self.w)
             .field("training", &self.training)
             .finish_non_exhaustive()
@@ -194,6 +206,7 @@ struct FrameKey {
     time_bits: u32,
     w_bits: u32,
     weights_step: Option<u64>,
+    preview_generation: u64,
     heat_map: bool,
     collisions: bool,
 }
@@ -201,7 +214,10 @@ struct FrameKey {
 impl AppState {
     /// A state showing `parts` (the built-in default scene at start-up).
     pub fn new(parts: SceneParts, training: TrainingControl, recent: RecentFiles) -> Self {
-        let train_config = TrainConfig { fps: parts.training_fps, ..TrainConfig::default() };
+        let train_config = TrainConfig {
+            fps: parts.training_fps,
+            ..TrainConfig::default()
+        };
         Self {
             scene: SceneState {
                 name: parts.name,
@@ -235,7 +251,10 @@ impl AppState {
 
     /// Adds a status message.
     pub fn message(&mut self, level: Level, text: impl Into<String>) {
-        self.messages.push(Message { level, text: text.into() });
+        self.messages.push(Message {
+            level,
+            text: text.into(),
+        });
         if self.messages.len() > 100 {
             self.messages.remove(0);
         }
@@ -243,7 +262,11 @@ impl AppState {
 
     /// The most recent error, if the latest message is one.
     pub fn last_error(&self) -> Option<&str> {
-        self.messages.iter().rev().find(|m| m.level == Level::Error).map(|m| m.text.as_str())
+        self.messages
+            .iter()
+            .rev()
+            .find(|m| m.level == Level::Error)
+            .map(|m| m.text.as_str())
     }
 
     fn warn_all(&mut self, what: &str, warnings: Vec<String>) {
@@ -252,7 +275,7 @@ impl AppState {
         }
     }
 
-    fn scene_changed(&mut self) {
+    pub(crate) fn scene_changed(&mut self) {
         self.scene.revision += 1;
         self.preview.reset_scene();
         let count = self.scene.avatar.motions.len();
@@ -281,7 +304,14 @@ impl AppState {
             },
             _ => None,
         };
-        self.message(Level::Info, format!("loaded avatar '{}' ({} motions)", avatar.name, avatar.motions.len()));
+        self.message(
+            Level::Info,
+            format!(
+                "loaded avatar '{}' ({} motions)",
+                avatar.name,
+                avatar.motions.len()
+            ),
+        );
         self.warn_all("avatar", loaded.warnings);
         self.scene.splits = vec![Split::Train; avatar.motions.len()];
         self.scene.name = avatar.name.clone();
@@ -300,7 +330,14 @@ impl AppState {
     pub fn load_garment(&mut self, path: &Path) -> bool {
         match loading::load_garment(path, &self.scene.avatar) {
             Ok(loaded) => {
-                self.message(Level::Info, format!("loaded garment '{}' ({} vertices)", loaded.value.name, loaded.value.vertex_count()));
+                self.message(
+                    Level::Info,
+                    format!(
+                        "loaded garment '{}' ({} vertices)",
+                        loaded.value.name,
+                        loaded.value.vertex_count()
+                    ),
+                );
                 self.warn_all("garment", loaded.warnings);
                 self.scene.garment = Some(loaded.value);
                 self.scene.sources.garment = Some(path.to_path_buf());
@@ -320,10 +357,19 @@ impl AppState {
             Ok(loaded) => {
                 let mut avatar = (*self.scene.avatar).clone();
                 let motion: Motion = loaded.value;
-                self.message(Level::Info, format!("loaded motion '{}' ({:.1} s)", motion.name, motion.duration_secs()));
+                self.message(
+                    Level::Info,
+                    format!(
+                        "loaded motion '{}' ({:.1} s)",
+                        motion.name,
+                        motion.duration_secs()
+                    ),
+                );
                 self.warn_all("motion", loaded.warnings);
                 avatar.motions.push(motion);
-                self.scene.splits.resize(avatar.motions.len() - 1, Split::Train);
+                self.scene
+                    .splits
+                    .resize(avatar.motions.len() - 1, Split::Train);
                 self.scene.splits.push(Split::Train);
                 let index = avatar.motions.len() - 1;
                 self.scene.avatar = Arc::new(avatar);
@@ -397,7 +443,10 @@ impl AppState {
             return;
         }
         let run_dir = self.run_dir.clone().unwrap_or_else(|| {
-            let stamp = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
+            let stamp = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map(|d| d.as_secs())
+                .unwrap_or(0);
             PathBuf::from("runs").join(format!("{}-{stamp}", garment.name))
         });
         let scene = match self.assemble_scene(&garment) {
@@ -407,7 +456,12 @@ impl AppState {
                 return;
             }
         };
-        let request = TrainingRequest { scene: Arc::new(scene), fabric: self.fabric.clone(), config: self.train_config.clone(), run_dir };
+        let request = TrainingRequest {
+            scene: Arc::new(scene),
+            fabric: self.fabric.clone(),
+            config: self.train_config.clone(),
+            run_dir,
+        };
         match self.training.start(request, notify) {
             Ok(()) => self.message(Level::Info, "training started"),
             Err(e) => self.message(Level::Error, format!("cannot start training: {e}")),
@@ -427,7 +481,16 @@ impl AppState {
             return Err("no training motion: load a BVH motion".into());
         }
         let fabric = toml::Table::try_from(&self.fabric).map_err(|e| e.to_string())?;
-        Scene::new(self.scene.name.clone(), avatar, garment.clone(), motions, self.effects, fabric, self.train_config.fps).map_err(|e| e.to_string())
+        Scene::new(
+            self.scene.name.clone(),
+            avatar,
+            garment.clone(),
+            motions,
+            self.effects,
+            fabric,
+            self.train_config.fps,
+        )
+        .map_err(|e| e.to_string())
     }
 
     /// Drains trainer events (once per frame) and hands new weights to the preview.
@@ -438,97 +501,24 @@ impl AppState {
         }
     }
 
-    /// The project file describing the current setup.
-    pub fn to_project(&self) -> ProjectFile {
-        ProjectFile {
-            scene: SceneSources { fabric_preset: Some(self.fabric_preset.clone()), ..self.scene.sources.clone() },
-            fabric: self.fabric.clone(),
-            effects: self.effects,
-            training: self.train_config.clone(),
-            run_dir: self.run_dir.clone(),
-            view: ViewSettings { w: self.w, draw: self.draw, x_axis: self.curves.x_axis, playback_speed: self.playback.speed },
-            ..Default::default()
-        }
-    }
-
-    /// Saves the setup as a project file and remembers it in the recent files.
-    pub fn save_project(&mut self, path: &Path) -> bool {
-        let result = self.to_project().save(path).and_then(|()| self.recent.push(path));
-        self.project_done(path, result, "saved")
-    }
-
-    fn project_done(&mut self, path: &Path, result: Result<(), ProjectError>, verb: &str) -> bool {
-        match result {
-            Ok(()) => {
-                self.project_path = Some(path.to_path_buf());
-                self.message(Level::Info, format!("{verb} project {}", path.display()));
-                true
-            }
-            Err(e) => {
-                self.message(Level::Error, e.to_string());
-                false
-            }
-        }
-    }
-
-    /// Opens a project: loads its avatar, garment and motions (the built-in scene parts where
-    /// it names none) and applies its settings. Load errors are shown; what loads is kept.
-    pub fn open_project(&mut self, path: &Path, default_scene: impl FnOnce() -> Option<SceneParts>) -> bool {
-        let project = match ProjectFile::open(path) {
-            Ok(p) => p,
-            Err(e) => {
-                self.message(Level::Error, e.to_string());
-                return false;
-            }
-        };
-        self.fabric = project.fabric.clone();
-        self.fabric_preset = project.scene.fabric_preset.clone().unwrap_or_else(|| "custom".into());
-        self.effects = project.effects;
-        self.train_config = project.training.clone();
-        self.run_dir = project.run_dir.clone();
-        self.w = project.view.w;
-        self.draw = project.view.draw;
-        self.curves.x_axis = project.view.x_axis;
-        self.playback.speed = project.view.playback_speed.clamp(super::playback::MIN_SPEED, super::playback::MAX_SPEED);
-        if project.scene.avatar.is_none() || project.scene.garment.is_none() {
-            if let Some(parts) = default_scene() {
-                self.scene.name = parts.name;
-                self.scene.avatar = parts.avatar;
-                self.scene.splits = parts.splits;
-                self.scene.garment = parts.garment;
-                self.scene.sources = SceneSources::default();
-                self.scene_changed();
-            }
-        }
-        if let Some(a) = &project.scene.avatar {
-            self.load_avatar(a);
-        }
-        if let Some(g) = &project.scene.garment {
-            self.load_garment(g);
-        }
-        for m in &project.scene.motions {
-            self.load_motion(m);
-        }
-        let result = self.recent.push(path);
-        self.project_done(path, result, "opened")
-    }
-
     /// The frame to show now, and its revision (unchanged while nothing it depends on
     /// changed, so the viewport uploads nothing).
     pub fn scene_frame(&mut self) -> (Arc<SceneFrame>, u64) {
+        self.preview.poll_build();
         let key = FrameKey {
             scene: self.scene.revision,
             motion: self.playback.motion,
             time_bits: self.playback.time_secs.to_bits(),
             w_bits: self.w.to_bits(),
             weights_step: self.preview.weights_step(),
+            preview_generation: self.preview.generation(),
             heat_map: self.draw.heat_map,
             collisions: self.draw.collision_points,
         };
-        if let Some((k, frame)) = &self.frame {
-            if *k == key {
-                return (frame.clone(), self.frame_revision);
-            }
+        if let Some((k, frame)) = &self.frame
+            && *k == key
+        {
+            return (frame.clone(), self.frame_revision);
         }
         let frame = Arc::new(super::frame_builder::build_frame(self));
         self.frame_revision += 1;

@@ -14,21 +14,40 @@ pub const PROJECT_EXTENSION: &str = "toml";
 impl NeuralClothApp {
     /// Play/pause, time slider, speed and the dynamic weight `w` (0–2).
     pub fn timeline_ui(&mut self, ui: &mut egui::Ui) {
-        let duration = self.state.current_motion().map_or(0.0, |m| m.duration_secs());
+        let duration = self
+            .state
+            .current_motion()
+            .map_or(0.0, |m| m.duration_secs());
         ui.horizontal(|ui| {
             let playing = self.state.playback.playing;
-            if ui.button(if playing { "⏸ Pause" } else { "▶ Play" }).clicked() {
+            if ui
+                .button(if playing { "Pause playback" } else { "Play" })
+                .clicked()
+            {
                 self.state.playback.playing = !playing;
             }
             let mut t = self.state.playback.time_secs;
-            let slider = egui::Slider::new(&mut t, 0.0..=duration.max(1e-3)).text("time (s)").fixed_decimals(2);
+            let slider = egui::Slider::new(&mut t, 0.0..=duration.max(1e-3))
+                .text("time (s)")
+                .fixed_decimals(2);
             if ui.add_enabled(duration > 0.0, slider).changed() {
                 self.state.playback.seek(t, duration);
             }
-            ui.add(egui::Slider::new(&mut self.state.playback.speed, MIN_SPEED..=MAX_SPEED).logarithmic(true).text("speed").fixed_decimals(2));
+            ui.add(
+                egui::Slider::new(&mut self.state.playback.speed, MIN_SPEED..=MAX_SPEED)
+                    .logarithmic(true)
+                    .text("speed")
+                    .fixed_decimals(2),
+            );
             let mut w = self.state.w;
-            let w_slider = egui::Slider::new(&mut w, 0.0..=2.0).text("w (dynamics)").fixed_decimals(2);
-            if ui.add(w_slider).on_hover_text("0 = static, 1 = trained behaviour, 2 = exaggerated dynamics").changed() {
+            let w_slider = egui::Slider::new(&mut w, 0.0..=2.0)
+                .text("w (dynamics)")
+                .fixed_decimals(2);
+            if ui
+                .add(w_slider)
+                .on_hover_text("0 = static, 1 = trained behaviour, 2 = exaggerated dynamics")
+                .changed()
+            {
                 self.state.set_w(w);
             }
         });
@@ -39,13 +58,16 @@ impl NeuralClothApp {
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
                 if ui.button("Open project…").clicked() {
-                    let picked = rfd::FileDialog::new().add_filter("neural-cloth project", &[PROJECT_EXTENSION]).pick_file();
+                    let picked = rfd::FileDialog::new()
+                        .add_filter("neural-cloth project", &[PROJECT_EXTENSION])
+                        .pick_file();
                     if let Some(path) = picked {
                         self.open_project(&path);
                     }
                 }
                 let save_as = |app: &Self| {
-                    let mut dialog = rfd::FileDialog::new().add_filter("neural-cloth project", &[PROJECT_EXTENSION]);
+                    let mut dialog = rfd::FileDialog::new()
+                        .add_filter("neural-cloth project", &[PROJECT_EXTENSION]);
                     if let Some(dir) = app.state.project_path.as_ref().and_then(|p| p.parent()) {
                         dialog = dialog.set_directory(dir);
                     }
@@ -57,10 +79,10 @@ impl NeuralClothApp {
                         self.state.save_project(&path);
                     }
                 }
-                if ui.button("Save project as…").clicked() {
-                    if let Some(path) = save_as(self) {
-                        self.state.save_project(&path);
-                    }
+                if ui.button("Save project as…").clicked()
+                    && let Some(path) = save_as(self)
+                {
+                    self.state.save_project(&path);
                 }
                 ui.separator();
                 ui.label("Project path:");
@@ -68,10 +90,16 @@ impl NeuralClothApp {
                 ui.horizontal(|ui| {
                     let typed = PathBuf::from(self.state.typed.project.trim());
                     let has_path = !self.state.typed.project.trim().is_empty();
-                    if ui.add_enabled(has_path, egui::Button::new("Open")).clicked() {
+                    if ui
+                        .add_enabled(has_path, egui::Button::new("Open"))
+                        .clicked()
+                    {
                         self.open_project(&typed);
                     }
-                    if ui.add_enabled(has_path, egui::Button::new("Save")).clicked() {
+                    if ui
+                        .add_enabled(has_path, egui::Button::new("Save"))
+                        .clicked()
+                    {
                         self.state.save_project(&typed);
                     }
                 });
@@ -96,7 +124,7 @@ impl NeuralClothApp {
                 ui.checkbox(&mut self.show_curves, "metric curves");
                 ui.checkbox(&mut self.viewport.show_timing, "frame time overlay");
                 if ui.button("Reset camera").clicked() {
-                    self.viewport.camera.reset();
+                    self.viewport.reset_camera();
                 }
             });
             if let Some(p) = &self.state.project_path {
@@ -108,7 +136,8 @@ impl NeuralClothApp {
     /// Opens a project (the built-in scene fills in the parts it does not name).
     pub fn open_project(&mut self, path: &std::path::Path) -> bool {
         self.state.training.reset();
-        self.state.open_project(path, || super::default_scene().ok())
+        self.state
+            .open_project(path, || super::default_scene().ok())
     }
 
     /// The export dialog.
@@ -117,43 +146,63 @@ impl NeuralClothApp {
             return;
         }
         let mut open = true;
-        let motions: Vec<String> = self.state.scene.avatar.motions.iter().map(|m| m.name.clone()).collect();
+        let motions: Vec<String> = self
+            .state
+            .scene
+            .avatar
+            .motions
+            .iter()
+            .map(|m| m.name.clone())
+            .collect();
         let mut run = false;
-        egui::Window::new("Export baked sequence").open(&mut open).collapsible(false).show(ui.ctx(), |ui| {
-            let settings = &mut self.state.export;
-            egui::ComboBox::from_label("format").selected_text(settings.format.label()).show_ui(ui, |ui| {
-                for f in ExportFormat::ALL {
-                    ui.selectable_value(&mut settings.format, f, f.label());
-                }
-            });
-            let motion_name = motions.get(settings.motion).cloned().unwrap_or_else(|| "none".into());
-            egui::ComboBox::from_label("motion").selected_text(motion_name).show_ui(ui, |ui| {
-                for (k, name) in motions.iter().enumerate() {
-                    ui.selectable_value(&mut settings.motion, k, name);
-                }
-            });
-            ui.horizontal(|ui| {
-                ui.label("path");
-                ui.text_edit_singleline(&mut settings.path);
-                if ui.button("Browse…").clicked() {
-                    let ext = settings.format.extension();
-                    if let Some(p) = rfd::FileDialog::new().add_filter(settings.format.label(), &[ext]).save_file() {
-                        settings.path = p.display().to_string();
+        egui::Window::new("Export baked sequence")
+            .open(&mut open)
+            .collapsible(false)
+            .show(ui.ctx(), |ui| {
+                let settings = &mut self.state.export;
+                egui::ComboBox::from_label("format")
+                    .selected_text(settings.format.label())
+                    .show_ui(ui, |ui| {
+                        for f in ExportFormat::ALL {
+                            ui.selectable_value(&mut settings.format, f, f.label());
+                        }
+                    });
+                let motion_name = motions
+                    .get(settings.motion)
+                    .cloned()
+                    .unwrap_or_else(|| "none".into());
+                egui::ComboBox::from_label("motion")
+                    .selected_text(motion_name)
+                    .show_ui(ui, |ui| {
+                        for (k, name) in motions.iter().enumerate() {
+                            ui.selectable_value(&mut settings.motion, k, name);
+                        }
+                    });
+                ui.horizontal(|ui| {
+                    ui.label("path");
+                    ui.text_edit_singleline(&mut settings.path);
+                    if ui.button("Browse…").clicked() {
+                        let ext = settings.format.extension();
+                        if let Some(p) = rfd::FileDialog::new()
+                            .add_filter(settings.format.label(), &[ext])
+                            .save_file()
+                        {
+                            settings.path = p.display().to_string();
+                        }
                     }
+                });
+                ui.label(format!("w = {:.2} (from the timeline)", self.state.w));
+                run = ui.button("Export").clicked();
+                match &settings.last_result {
+                    Some(Ok(s)) => {
+                        ui.label(s);
+                    }
+                    Some(Err(e)) => {
+                        ui.colored_label(egui::Color32::from_rgb(255, 100, 90), e);
+                    }
+                    None => {}
                 }
             });
-            ui.label(format!("w = {:.2} (from the timeline)", self.state.w));
-            run = ui.button("Export").clicked();
-            match &settings.last_result {
-                Some(Ok(s)) => {
-                    ui.label(s);
-                }
-                Some(Err(e)) => {
-                    ui.colored_label(egui::Color32::from_rgb(255, 100, 90), e);
-                }
-                None => {}
-            }
-        });
         self.state.export.open = open;
         if run {
             self.run_export();
@@ -170,7 +219,12 @@ impl NeuralClothApp {
                 avatar: self.state.scene.avatar.clone(),
                 garment: garment.clone(),
                 motion: settings.motion,
-                weights: self.state.training.latest_weights.as_ref().map(|(_, w)| w.clone()),
+                weights: self
+                    .state
+                    .training
+                    .latest_weights
+                    .as_ref()
+                    .map(|(_, w)| w.clone()),
                 w: self.state.w,
                 fps: self.state.train_config.fps,
                 format: settings.format,
@@ -179,7 +233,9 @@ impl NeuralClothApp {
         };
         match &result {
             Ok(s) => self.state.message(Level::Info, s.clone()),
-            Err(e) => self.state.message(Level::Error, format!("export failed: {e}")),
+            Err(e) => self
+                .state
+                .message(Level::Error, format!("export failed: {e}")),
         }
         self.state.export.last_result = Some(result);
     }

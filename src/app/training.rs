@@ -65,7 +65,11 @@ pub struct TrainingRequest {
 /// repaint).
 pub trait TrainerLauncher: Send {
     /// Starts training; errors are shown in the UI.
-    fn launch(&mut self, request: TrainingRequest, notify: Arc<dyn Fn() + Send + Sync>) -> Result<TrainerHandle, String>;
+    fn launch(
+        &mut self,
+        request: TrainingRequest,
+        notify: Arc<dyn Fn() + Send + Sync>,
+    ) -> Result<TrainerHandle, String>;
 }
 
 /// Progress numbers shown under the buttons.
@@ -152,7 +156,11 @@ impl TrainingControl {
     }
 
     /// Starts a run (from idle or finished); the history starts empty.
-    pub fn start(&mut self, request: TrainingRequest, notify: Arc<dyn Fn() + Send + Sync>) -> Result<(), String> {
+    pub fn start(
+        &mut self,
+        request: TrainingRequest,
+        notify: Arc<dyn Fn() + Send + Sync>,
+    ) -> Result<(), String> {
         if self.state.is_active() {
             return Err("training is already running".into());
         }
@@ -164,7 +172,10 @@ impl TrainingControl {
         let handle = launcher.launch(request, notify)?;
         self.handle = Some(handle);
         self.history = MetricHistory::default();
-        self.progress = Progress { max_steps, ..Default::default() };
+        self.progress = Progress {
+            max_steps,
+            ..Default::default()
+        };
         self.run_dir = Some(run_dir);
         self.last_checkpoint = None;
         self.state = TrainingState::Running;
@@ -209,7 +220,9 @@ impl TrainingControl {
             h.stop();
             // Dropping the handle joins the thread (at its next step boundary): do that on a
             // helper thread so the UI never waits for a training step.
-            let joined = std::thread::Builder::new().name("neural-cloth-trainer-join".into()).spawn(move || drop(h));
+            let joined = std::thread::Builder::new()
+                .name("neural-cloth-trainer-join".into())
+                .spawn(move || drop(h));
             if let Err(e) = joined {
                 self.note(format!("could not stop the trainer in the background: {e}"));
             }
@@ -261,7 +274,11 @@ impl TrainingControl {
                     if dt > 0.0 && dt.is_finite() {
                         let rate = ds / dt;
                         let s = &mut self.progress.steps_per_sec;
-                        *s = if *s > 0.0 { 0.9 * *s + 0.1 * rate } else { rate };
+                        *s = if *s > 0.0 {
+                            0.9 * *s + 0.1 * rate
+                        } else {
+                            rate
+                        };
                     }
                 }
                 self.progress.step = record.step;
@@ -271,7 +288,11 @@ impl TrainingControl {
             TrainEvent::Validation(record) => self.history.validation.push(record),
             TrainEvent::Snapshot { step, weights } => self.latest_weights = Some((step, weights)),
             TrainEvent::Checkpoint { path, .. } => self.last_checkpoint = Some(path),
-            TrainEvent::RolledBack { diverged_at, restored_step, learning_rate } => {
+            TrainEvent::RolledBack {
+                diverged_at,
+                restored_step,
+                learning_rate,
+            } => {
                 self.history.truncate_after(restored_step);
                 self.note(format!("diverged at step {diverged_at}; back to step {restored_step}, learning rate {learning_rate:.2e}"));
             }
@@ -287,7 +308,14 @@ impl TrainingControl {
             }
             TrainEvent::Applied(what) => self.note(format!("applied: {what}")),
             TrainEvent::Finished(result) => {
-                let result = result.map(|s| format!("{} steps in {:.1} s, run {}", s.steps, s.wall_secs, s.run_dir.display()));
+                let result = result.map(|s| {
+                    format!(
+                        "{} steps in {:.1} s, run {}",
+                        s.steps,
+                        s.wall_secs,
+                        s.run_dir.display()
+                    )
+                });
                 if let Err(e) = &result {
                     self.note(format!("training failed: {e}"));
                 }

@@ -45,6 +45,13 @@ pub struct Viewport {
     pub timing: FrameTiming,
     /// Show the frame-time overlay.
     pub show_timing: bool,
+    /// Keep the camera on the body as it travels (walks, runs): the target follows the body's
+    /// horizontal centre. Default true.
+    pub follow: bool,
+    /// Body centre the camera last followed.
+    anchor: Option<crate::geometry::Vec3>,
+    /// Body centre when the home view was framed.
+    home_anchor: Option<crate::geometry::Vec3>,
     gpu: Option<ViewportGpu>,
     last_frame: Option<Instant>,
     rect: Option<egui::Rect>,
@@ -52,7 +59,10 @@ pub struct Viewport {
 
 impl std::fmt::Debug for Viewport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Viewport").field("camera", &self.camera).field("gpu", &self.gpu.is_some()).finish()
+        f.debug_struct("Viewport")
+            .field("camera", &self.camera)
+            .field("gpu", &self.gpu.is_some())
+            .finish()
     }
 }
 
@@ -65,6 +75,12 @@ struct ViewportCallback {
     options: DrawOptions,
 }
 
+/// Centre of the body's bounding box (the garment's when there is no body).
+fn body_centre(frame: &SceneFrame) -> Option<crate::geometry::Vec3> {
+    let (lo, hi) = frame.body.as_ref().or(frame.garment.as_ref())?.bounds()?;
+    Some((lo + hi) * 0.5)
+}
+
 impl egui_wgpu::CallbackTrait for ViewportCallback {
     fn prepare(
         &self,
@@ -74,19 +90,33 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
         encoder: &mut wgpu::CommandEncoder,
         _resources: &mut egui_wgpu::CallbackResources,
     ) -> Vec<wgpu::CommandBuffer> {
-        let Ok(mut gpu) = self.shared.lock() else { return Vec::new() };
+        let Ok(mut gpu) = self.shared.lock() else {
+            return Vec::new();
+        };
         let gpu = &mut *gpu;
         if gpu.uploaded != Some(self.revision) {
-            gpu.error = gpu.renderer.upload(&self.frame).err().map(|e| e.to_string());
+            gpu.error = gpu
+                .renderer
+                .upload(&self.frame)
+                .err()
+                .map(|e| e.to_string());
             gpu.uploaded = Some(self.revision);
         }
-        if let Err(e) = gpu.renderer.render(encoder, &gpu.target, &self.camera, &self.options) {
+        if let Err(e) = gpu
+            .renderer
+            .render(encoder, &gpu.target, &self.camera, &self.options)
+        {
             gpu.error = Some(e.to_string());
         }
         Vec::new()
     }
 
-    fn paint(&self, _info: egui::PaintCallbackInfo, _pass: &mut wgpu::RenderPass<'static>, _resources: &egui_wgpu::CallbackResources) {
+    fn paint(
+        &self,
+        _info: egui::PaintCallbackInfo,
+        _pass: &mut wgpu::RenderPass<'static>,
+        _resources: &egui_wgpu::CallbackResources,
+    ) {
         // The 3D pass already ran in `prepare`; egui paints its result as an image.
     }
 }
@@ -96,13 +126,37 @@ impl Viewport {
     /// in UI tests without a GPU renderer).
     pub fn new(render_state: Option<&egui_wgpu::RenderState>) -> Self {
         let gpu = render_state.map(|rs| {
-            let renderer = Renderer::new(&rs.device, &rs.queue, VIEWPORT_FORMAT);
+            let samples = Renderer::preferred_sample_count(&rs.adapter.get_info());
+            let renderer = Renderer::with_samples(&rs.device, &rs.queue, VIEWPORT_FORMAT, samples);
             let target = renderer.create_target([64, 64]);
-            let texture = rs.renderer.write().register_native_texture(&rs.device, target.color_view(), wgpu::FilterMode::Linear);
-            let shared = GpuShared { renderer, target, uploaded: None, error: None };
-            ViewportGpu { render_state: rs.clone(), shared: Arc::new(Mutex::new(shared)), texture }
+            let texture = rs.renderer.write().register_native_texture(
+                &rs.device,
+                target.color_view(),
+                wgpu::FilterMode::Linear,
+            );
+            let shared = GpuShared {
+                renderer,
+                target,
+                uploaded: None,
+                error: None,
+            };
+            ViewportGpu {
+                render_state: rs.clone(),
+                shared: Arc::new(Mutex::new(shared)),
+                texture,
+            }
         });
-        Self { camera: OrbitCamera::default(), timing: FrameTiming::default(), show_timing: false, gpu, last_frame: None, rect: None }
+        Self {
+            camera: OrbitCamera::default(),
+            timing: FrameTiming::default(),
+            show_timing: false,
+            follow: true,
+            anchor: None,
+            home_anchor: None,
+            gpu,
+            last_frame: None,
+            rect: None,
+        }
     }
 
     /// True when the viewport can draw (egui runs on wgpu).
@@ -125,6 +179,29 @@ impl Viewport {
     /// Frames the camera on `frame`'s body and garment and makes that the home view.
     pub fn frame_scene(&mut self, frame: &SceneFrame) {
         self.camera = crate::render::offscreen::default_camera(frame);
+        self.home_anchor = body_centre(frame);
+        self.anchor = self.home_anchor;
+    }
+
+    /// Returns to the home view (centred on where the body is now when following it).
+    pub fn reset_camera(&mut self) {
+        self.camera.reset();
+        if let (true, Some(now), Some(home)) = (self.follow, self.anchor, self.home_anchor) {
+            self.camera.target.x += now.x - home.x;
+            self.camera.target.z += now.z - home.z;
+        }
+    }
+
+    /// Moves the camera target with the body's horizontal travel since the last frame.
+    fn follow_body(&mut self, frame: &SceneFrame) {
+        let Some(now) = body_centre(frame) else {
+            return;
+        };
+        if let (true, Some(before)) = (self.follow, self.anchor) {
+            self.camera.target.x += now.x - before.x;
+            self.camera.target.z += now.z - before.z;
+        }
+        self.anchor = Some(now);
     }
 
     /// Applies mouse input on `response` to the camera.
@@ -132,7 +209,10 @@ impl Viewport {
         let delta = response.drag_delta();
         let shift = ui.input(|i| i.modifiers.shift);
         let height = response.rect.height().max(1.0);
-        if response.dragged_by(egui::PointerButton::Secondary) || response.dragged_by(egui::PointerButton::Middle) || (shift && response.dragged_by(egui::PointerButton::Primary)) {
+        if response.dragged_by(egui::PointerButton::Secondary)
+            || response.dragged_by(egui::PointerButton::Middle)
+            || (shift && response.dragged_by(egui::PointerButton::Primary))
+        {
             self.camera.pan(delta.x, delta.y, height);
         } else if response.dragged_by(egui::PointerButton::Primary) {
             self.camera.orbit(-delta.x * 0.008, delta.y * 0.008);
@@ -148,17 +228,28 @@ impl Viewport {
             }
         }
         if response.double_clicked() {
-            self.camera.reset();
+            self.reset_camera();
         }
     }
 
     /// Shows the viewport filling the available space, drawing `frame` (identified by
     /// `revision`: the same revision is not uploaded twice) with `options`.
-    pub fn ui(&mut self, ui: &mut egui::Ui, frame: &Arc<SceneFrame>, revision: u64, options: &DrawOptions) -> egui::Response {
+    pub fn ui(
+        &mut self,
+        ui: &mut egui::Ui,
+        frame: &Arc<SceneFrame>,
+        revision: u64,
+        options: &DrawOptions,
+    ) -> egui::Response {
         let started = Instant::now();
+        self.follow_body(frame);
         if let Some(last) = self.last_frame.replace(started) {
             let dt_ms = last.elapsed().as_secs_f64() * 1e3;
-            self.timing.frame_ms = if self.timing.frame_ms > 0.0 { 0.9 * self.timing.frame_ms + 0.1 * dt_ms } else { dt_ms };
+            self.timing.frame_ms = if self.timing.frame_ms > 0.0 {
+                0.9 * self.timing.frame_ms + 0.1 * dt_ms
+            } else {
+                dt_ms
+            };
         }
         let size = ui.available_size().max(egui::vec2(32.0, 32.0));
         let (rect, response) = ui.allocate_exact_size(size, egui::Sense::click_and_drag());
@@ -167,38 +258,79 @@ impl Viewport {
         let painter = ui.painter_at(rect);
         let Some(gpu) = &self.gpu else {
             painter.rect_filled(rect, 0.0, egui::Color32::from_rgb(36, 40, 48));
-            painter.text(rect.center(), egui::Align2::CENTER_CENTER, "3D viewport needs the wgpu renderer", egui::FontId::proportional(14.0), egui::Color32::GRAY);
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "3D viewport needs the wgpu renderer",
+                egui::FontId::proportional(14.0),
+                egui::Color32::GRAY,
+            );
             return response;
         };
         let ppp = ui.ctx().pixels_per_point();
-        let size_px = [(rect.width() * ppp).round().max(1.0) as u32, (rect.height() * ppp).round().max(1.0) as u32];
+        let size_px = [
+            (rect.width() * ppp).round().max(1.0) as u32,
+            (rect.height() * ppp).round().max(1.0) as u32,
+        ];
         let mut error = None;
         if let Ok(mut shared) = gpu.shared.lock() {
             if shared.target.size() != size_px {
                 shared.target = shared.renderer.create_target(size_px);
                 let device = &gpu.render_state.device;
-                gpu.render_state.renderer.write().update_egui_texture_from_wgpu_texture(
-                    device,
-                    shared.target.color_view(),
-                    wgpu::FilterMode::Linear,
-                    gpu.texture,
-                );
+                gpu.render_state
+                    .renderer
+                    .write()
+                    .update_egui_texture_from_wgpu_texture(
+                        device,
+                        shared.target.color_view(),
+                        wgpu::FilterMode::Linear,
+                        gpu.texture,
+                    );
             }
             error = shared.error.clone();
         }
-        let callback = ViewportCallback { shared: gpu.shared.clone(), frame: frame.clone(), revision, camera: self.camera, options: *options };
+        let callback = ViewportCallback {
+            shared: gpu.shared.clone(),
+            frame: frame.clone(),
+            revision,
+            camera: self.camera,
+            options: *options,
+        };
         painter.add(egui_wgpu::Callback::new_paint_callback(rect, callback));
         let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
         painter.image(gpu.texture, rect, uv, egui::Color32::WHITE);
         if let Some(e) = error {
-            painter.text(rect.left_bottom() + egui::vec2(8.0, -8.0), egui::Align2::LEFT_BOTTOM, e, egui::FontId::proportional(13.0), egui::Color32::from_rgb(255, 120, 100));
+            painter.text(
+                rect.left_bottom() + egui::vec2(8.0, -8.0),
+                egui::Align2::LEFT_BOTTOM,
+                e,
+                egui::FontId::proportional(13.0),
+                egui::Color32::from_rgb(255, 120, 100),
+            );
         }
         let cpu_ms = started.elapsed().as_secs_f64() * 1e3;
-        self.timing.cpu_ms = if self.timing.cpu_ms > 0.0 { 0.9 * self.timing.cpu_ms + 0.1 * cpu_ms } else { cpu_ms };
+        self.timing.cpu_ms = if self.timing.cpu_ms > 0.0 {
+            0.9 * self.timing.cpu_ms + 0.1 * cpu_ms
+        } else {
+            cpu_ms
+        };
         if self.show_timing {
-            let fps = if self.timing.frame_ms > 0.0 { 1e3 / self.timing.frame_ms } else { 0.0 };
-            let text = format!("{:.1} ms/frame ({fps:.0} fps), viewport CPU {:.2} ms, {}×{} px", self.timing.frame_ms, self.timing.cpu_ms, size_px[0], size_px[1]);
-            painter.text(rect.left_top() + egui::vec2(8.0, 8.0), egui::Align2::LEFT_TOP, text, egui::FontId::monospace(12.0), egui::Color32::from_rgb(220, 220, 120));
+            let fps = if self.timing.frame_ms > 0.0 {
+                1e3 / self.timing.frame_ms
+            } else {
+                0.0
+            };
+            let text = format!(
+                "{:.1} ms/frame ({fps:.0} fps), viewport CPU {:.2} ms, {}×{} px",
+                self.timing.frame_ms, self.timing.cpu_ms, size_px[0], size_px[1]
+            );
+            painter.text(
+                rect.left_top() + egui::vec2(8.0, 8.0),
+                egui::Align2::LEFT_TOP,
+                text,
+                egui::FontId::monospace(12.0),
+                egui::Color32::from_rgb(220, 220, 120),
+            );
         }
         response
     }

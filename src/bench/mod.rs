@@ -1,28 +1,44 @@
 //! Benchmarks behind `neural-cloth bench` (paper Tab. 4 protocol): frames per second from raw
 //! pose to garment and body meshes at 10K and 250K degrees of freedom on 1 thread and all
-//! threads, the memory-bandwidth floor of streaming the 250K basis, the training step time and
-//! the cost of each physics term. Every figure that is compared is compared against a
-//! baseline measured in the same run (the machine is shared and noisy).
+//! threads, the memory-bandwidth floor of streaming the 250K basis, the error of the f16
+//! weights, the training step time and the cost of each physics term. Every figure that is
+//! compared is compared against a baseline measured in the same run (the machine is shared
+//! and noisy).
 
 pub mod memory;
+pub mod report;
 pub mod suite;
 
 use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::model::{ClothNetConfig, DescriptorConfig, InferenceEngine, InferenceOptions, InferenceWeights};
+use crate::model::{
+    ClothNetConfig, DescriptorConfig, EncoderKind, InferenceEngine, InferenceOptions,
+    InferenceWeights,
+};
 use crate::scene::procedural::{GarmentKind, MotionKind, builtin_garment, mannequin, motion};
-use crate::scene::{Avatar, Garment};
+use crate::scene::{Avatar, Garment, Motion};
 
-pub use memory::{MemoryBandwidth, measure_bandwidth, peak_rss_bytes, reset_peak_rss};
+pub use memory::{
+    MemoryBandwidth, measure_bandwidth, peak_rss_bytes, reset_peak_rss, rss_bytes,
+};
 pub use suite::{BenchOptions, BenchReport, TrainBench, bench_training, run_suite};
 
-/// Inference speed at one garment size and thread count.
+/// Frame rate of the benchmark motion and of the engines.
+const FPS: f32 = 30.0;
+/// Frames run before timing starts.
+const WARM_UP: usize = 5;
+
+/// Inference speed at one garment size, model, precision and thread count.
 #[derive(Clone, Debug, Serialize)]
 pub struct InferenceBench {
     /// Degrees of freedom (3 × garment vertices).
     pub dof: usize,
+    /// Encoder layout (`StaticOnly` = the scene has no dynamics).
+    pub model: EncoderKind,
+    /// Storage precision of the basis / of the other layers, e.g. `f16/f16`.
+    pub precision: String,
     /// Worker threads (1, or all cores).
     pub threads: usize,
     /// Median milliseconds per frame (pose → garment + body meshes).
@@ -31,69 +47,222 @@ pub struct InferenceBench {
     pub fps: f64,
     /// Frames per second with the dynamic branch skipped (a still body).
     pub still_fps: f64,
-    /// Size of the weights in bytes.
+    /// Size of the trained weights in f32 (as handed to the engine), bytes.
     pub weight_bytes: usize,
-    /// Peak resident memory while running, minus the resident memory before the engine was
-    /// built, in bytes (Linux only; 0 elsewhere).
+    /// Bytes of weights the engine stores (basis and layers at their precision).
+    pub stored_bytes: usize,
+    /// Bytes of the stored basis.
+    pub basis_bytes: usize,
+    /// Bytes of the basis in f32 (the buffer size of the bandwidth floor).
+    pub basis_f32_bytes: usize,
+    /// Mean fraction of basis rows read per frame (rows of nonzero decoder outputs).
+    pub basis_rows_read: f64,
+    /// Peak resident memory from just before the engine was built to the last frame, minus
+    /// the resident memory before (the weights already loaded), bytes (Linux; 0 elsewhere).
     pub engine_peak_bytes: usize,
+}
+
+impl InferenceBench {
+    /// Peak memory of an inference process: the weights as loaded plus the engine's peak
+    /// increase, as a multiple of the weights.
+    pub fn peak_over_weights(&self) -> f64 {
+        (self.weight_bytes + self.engine_peak_bytes) as f64 / self.weight_bytes.max(1) as f64
+    }
 }
 
 /// A mannequin and a t-shirt of about `dof` degrees of freedom.
 pub fn scene_with_dof(avatar: &Avatar, dof: usize) -> Result<Garment, String> {
-    builtin_garment(avatar, GarmentKind::TShirt, (dof / 3).max(200), None).map_err(|e| e.to_string())
+    builtin_garment(avatar, GarmentKind::TShirt, (dof / 3).max(200), None)
+        .map_err(|e| e.to_string())
 }
 
 /// Randomly initialised weights of the default architecture for `vertices` vertices.
 pub fn random_weights(input_joints: usize, vertices: usize) -> Result<InferenceWeights, String> {
+    random_weights_of(EncoderKind::Disentangled, input_joints, vertices)
+}
+
+/// Randomly initialised weights of the default architecture with encoder layout `kind`.
+pub fn random_weights_of(
+    kind: EncoderKind,
+    input_joints: usize,
+    vertices: usize,
+) -> Result<InferenceWeights, String> {
     let device = crate::train::device_for(crate::train::BackendKind::Cpu, false);
-    let net = ClothNetConfig::default().init(input_joints, vertices, &device).map_err(|e| e.to_string())?;
+    let config = ClothNetConfig {
+        encoder: kind,
+        ..ClothNetConfig::default()
+    };
+    let net = config
+        .init(input_joints, vertices, &device)
+        .map_err(|e| e.to_string())?;
     InferenceWeights::from_module(&net).map_err(|e| e.to_string())
 }
 
-/// Times the inference engine on the walk motion for `frames` frames after a warm-up.
-pub fn bench_inference(avatar: &Avatar, garment: &Garment, weights: &InferenceWeights, threads: usize, frames: usize) -> Result<InferenceBench, String> {
-    let walk = motion(MotionKind::Walk, 30.0, 4.0).map_err(|e| e.to_string())?;
-    let options = InferenceOptions { threads, parallel_min_values: 0, skin_body: true };
+/// The benchmark motion: the procedural walk at the engines' rate.
+pub fn bench_motion() -> Result<Motion, String> {
+    motion(MotionKind::Walk, FPS, 4.0).map_err(|e| e.to_string())
+}
+
+fn median_ms(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN) * 1e3
+}
+
+/// Times the inference engine on the walk motion for `frames` frames after a warm-up, then
+/// on a still body. `weights` are moved into the engine (as an application would).
+pub fn bench_inference(
+    avatar: &Avatar,
+    garment: &Garment,
+    weights: InferenceWeights,
+    options: InferenceOptions,
+    frames: usize,
+) -> Result<InferenceBench, String> {
+    let walk = bench_motion()?;
+    let weight_bytes = weights.parameter_count() * 4;
+    let basis_f32_bytes = weights.basis.weight.len() * 4;
+    let model = weights.kind;
+    let precision = format!(
+        "{}/{}",
+        options.basis_precision.name(),
+        options.layer_precision.name()
+    );
+    let threads = match options.threads {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        n => n,
+    };
     reset_peak_rss();
-    let before = peak_rss_bytes();
-    let mut engine = InferenceEngine::from_scene(weights.clone(), avatar, garment, &DescriptorConfig::default(), 30.0, options).map_err(|e| e.to_string())?;
+    let before = rss_bytes();
+    let mut engine = InferenceEngine::from_scene(
+        weights,
+        avatar,
+        garment,
+        &DescriptorConfig::default(),
+        FPS,
+        options,
+    )
+    .map_err(|e| e.to_string())?;
+    let frames = frames.max(1);
     let mut times = Vec::with_capacity(frames);
-    for k in 0..frames + 5 {
-        let pose = &walk.frames[k % walk.frames.len()];
+    let mut rows_read = 0.0;
+    for k in 0..frames + WARM_UP {
+        let Some(pose) = walk.frames.get(k % walk.frames.len().max(1)) else {
+            return Err("the benchmark motion has no frames".into());
+        };
         let start = Instant::now();
         engine.step(pose, 1.0).map_err(|e| e.to_string())?;
         std::hint::black_box(engine.garment_positions());
-        if k >= 5 {
+        if k >= WARM_UP {
             times.push(start.elapsed().as_secs_f64());
+            let h = engine.basis_input();
+            rows_read += h.iter().filter(|v| **v != 0.0).count() as f64 / h.len().max(1) as f64;
         }
     }
     let engine_peak_bytes = peak_rss_bytes().saturating_sub(before);
-    let still_pose = &walk.frames[0];
+    let Some(still_pose) = walk.frames.first() else {
+        return Err("the benchmark motion has no frames".into());
+    };
     engine.reset();
     let mut still = Vec::with_capacity(frames);
-    for k in 0..frames + 5 {
+    for k in 0..frames + WARM_UP {
         let start = Instant::now();
         engine.step(still_pose, 1.0).map_err(|e| e.to_string())?;
         std::hint::black_box(engine.garment_positions());
-        if k >= 5 {
+        if k >= WARM_UP {
             still.push(start.elapsed().as_secs_f64());
         }
     }
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    let ms = median(&mut times) * 1e3;
-    let still_ms = median(&mut still) * 1e3;
-    let weight_bytes = weights.parameter_count() * 4;
+    let ms = median_ms(&mut times);
+    let still_ms = median_ms(&mut still);
     Ok(InferenceBench {
         dof: garment.vertex_count() * 3,
+        model,
+        precision,
         threads,
         ms_per_frame: ms,
         fps: 1e3 / ms,
         still_fps: 1e3 / still_ms,
         weight_bytes,
+        stored_bytes: engine.weight_bytes(),
+        basis_bytes: engine.basis_bytes(),
+        basis_f32_bytes,
+        basis_rows_read: rows_read / frames as f64,
         engine_peak_bytes,
+    })
+}
+
+/// How far the reduced-precision engine's meshes are from the f32 engine's.
+#[derive(Clone, Debug, Serialize)]
+pub struct PrecisionError {
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// Storage precision of the basis / of the other layers.
+    pub precision: String,
+    /// Frames compared (the walk, GRU state carried over, `w = 1`).
+    pub frames: usize,
+    /// Largest distance between a garment vertex of the two engines, metres.
+    pub max_vertex_error_m: f64,
+    /// Mean distance over all vertices and frames, metres.
+    pub mean_vertex_error_m: f64,
+    /// Largest offset magnitude of the f32 engine (the scale of the error), metres.
+    pub max_offset_m: f64,
+}
+
+/// Runs an f32 engine and one with `options`' precisions side by side over `frames` frames
+/// of the walk and measures the garment vertex error.
+pub fn measure_precision_error(
+    avatar: &Avatar,
+    garment: &Garment,
+    weights: InferenceWeights,
+    options: InferenceOptions,
+    frames: usize,
+) -> Result<PrecisionError, String> {
+    let walk = bench_motion()?;
+    let precision = format!(
+        "{}/{}",
+        options.basis_precision.name(),
+        options.layer_precision.name()
+    );
+    let descriptors = DescriptorConfig::default();
+    let exact = InferenceOptions {
+        skin_body: false,
+        ..InferenceOptions::exact()
+    };
+    let reduced = InferenceOptions {
+        skin_body: false,
+        ..options
+    };
+    let build = |w, o| {
+        InferenceEngine::from_scene(w, avatar, garment, &descriptors, FPS, o)
+            .map_err(|e| e.to_string())
+    };
+    let mut reference = build(weights.clone(), exact)?;
+    let mut engine = build(weights, reduced)?;
+    let (mut max, mut sum, mut count, mut max_offset) = (0f64, 0f64, 0usize, 0f64);
+    for pose in walk.frames.iter().cycle().take(frames) {
+        reference.step(pose, 1.0).map_err(|e| e.to_string())?;
+        engine.step(pose, 1.0).map_err(|e| e.to_string())?;
+        for (a, b) in reference
+            .garment_positions()
+            .iter()
+            .zip(engine.garment_positions())
+        {
+            let d = f64::from((a - b).norm());
+            max = max.max(d);
+            sum += d;
+            count += 1;
+        }
+        for o in reference.offsets().chunks_exact(3) {
+            let n = (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]).sqrt();
+            max_offset = max_offset.max(f64::from(n));
+        }
+    }
+    Ok(PrecisionError {
+        dof: garment.vertex_count() * 3,
+        precision,
+        frames,
+        max_vertex_error_m: max,
+        mean_vertex_error_m: sum / count.max(1) as f64,
+        max_offset_m: max_offset,
     })
 }
 

@@ -1,19 +1,26 @@
-//! The full benchmark suite and its Markdown table.
+//! The full benchmark suite and its Markdown report.
 
 use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::model::{ClothNetConfig, DescriptorConfig};
+use crate::model::{
+    ClothNetConfig, DescriptorConfig, EncoderKind, InferenceOptions, Precision,
+};
 use crate::physics::cost::{CostReport, measure_term_costs};
-use crate::scene::config::SceneConfig;
+use crate::scene::config::{Effects, SceneConfig};
 use crate::scene::procedural::build_builtin;
 use crate::train::handle::Session;
 use crate::train::{RunLocation, TrainConfig, TrainSetup, prepare};
 
-use super::{InferenceBench, MemoryBandwidth, bench_avatar, bench_inference, measure_bandwidth, peak_rss_bytes, random_weights, reset_peak_rss, scene_with_dof};
+use super::report::write_markdown;
+use super::{
+    InferenceBench, MemoryBandwidth, PrecisionError, bench_avatar, bench_inference,
+    measure_bandwidth, measure_precision_error, peak_rss_bytes, random_weights_of,
+    reset_peak_rss, scene_with_dof,
+};
 
-/// Training step time at one batch size.
+/// Training step time at one batch size and set of effects.
 #[derive(Clone, Debug, Serialize)]
 pub struct TrainBench {
     /// Windows per batch.
@@ -22,6 +29,8 @@ pub struct TrainBench {
     pub window_secs: f32,
     /// Training frame rate.
     pub fps: f32,
+    /// Effects of the scene (the default scene has all but pinning).
+    pub effects: Effects,
     /// Median milliseconds per optimiser step.
     pub ms_per_step: f64,
     /// Peak resident memory of the process during the steps, bytes.
@@ -33,9 +42,13 @@ pub struct TrainBench {
 pub struct BenchReport {
     /// Cores available.
     pub cores: usize,
-    /// Inference at each size and thread count.
+    /// True when the AVX2 + FMA + F16C kernels ran (false: portable loops).
+    pub simd: bool,
+    /// Inference at each size, model, precision and thread count.
     pub inference: Vec<InferenceBench>,
-    /// Streaming read of a buffer the size of the 250K basis, 1 thread and all threads.
+    /// Garment error of the default (f16) engine against the f32 one.
+    pub precision: Vec<PrecisionError>,
+    /// Streaming reads of buffers the size of each basis (f32 and f16), 1 thread and all.
     pub bandwidth: Vec<MemoryBandwidth>,
     /// Training step times.
     pub training: Vec<TrainBench>,
@@ -52,7 +65,8 @@ pub struct BenchOptions {
     pub dofs: Vec<usize>,
     /// Frames timed per inference run.
     pub frames: usize,
-    /// Batch sizes of the training benchmark (empty: skip).
+    /// Batch sizes of the training benchmark (empty: skip); the first one is also timed with
+    /// each effect switched off.
     pub train_batches: Vec<usize>,
     /// Steps timed per batch size.
     pub train_steps: usize,
@@ -62,16 +76,31 @@ pub struct BenchOptions {
 
 impl Default for BenchOptions {
     fn default() -> Self {
-        Self { dofs: vec![10_000, 250_000], frames: 60, train_batches: vec![16, 32], train_steps: 10, physics: true }
+        Self {
+            dofs: vec![10_000, 250_000],
+            frames: 60,
+            train_batches: vec![16, 32],
+            train_steps: 10,
+            physics: true,
+        }
     }
 }
 
-/// Median optimiser-step time of the default scene at `batch`.
-pub fn bench_training(batch: usize, steps: usize) -> Result<TrainBench, String> {
-    let config = SceneConfig::default_scene();
+/// Median optimiser-step time of the default scene with `effects` at `batch`.
+pub fn bench_training(batch: usize, steps: usize, effects: Effects) -> Result<TrainBench, String> {
+    let mut config = SceneConfig::default_scene();
+    config.effects = effects.clone();
     let scene = build_builtin(&config).map_err(|e| e.to_string())?;
-    let dir = std::env::temp_dir().join(format!("neural-cloth-bench-{}-{batch}", std::process::id()));
-    let train = TrainConfig { batch_size: batch, window_secs: 0.5, fps: 30.0, ..Default::default() };
+    let dir = std::env::temp_dir().join(format!(
+        "neural-cloth-bench-{}-{batch}",
+        std::process::id()
+    ));
+    let train = TrainConfig {
+        batch_size: batch,
+        window_secs: 0.5,
+        fps: 30.0,
+        ..Default::default()
+    };
     let setup = TrainSetup {
         scene,
         scene_config: config,
@@ -94,42 +123,152 @@ pub fn bench_training(batch: usize, steps: usize) -> Result<TrainBench, String> 
     let peak_bytes = peak_rss_bytes();
     let _ = std::fs::remove_dir_all(&dir);
     times.sort_by(f64::total_cmp);
-    Ok(TrainBench { batch, window_secs: train.window_secs, fps: train.fps, ms_per_step: times[times.len() / 2], peak_bytes })
+    Ok(TrainBench {
+        batch,
+        window_secs: train.window_secs,
+        fps: train.fps,
+        effects,
+        ms_per_step: times.get(times.len() / 2).copied().unwrap_or(f64::NAN),
+        peak_bytes,
+    })
+}
+
+/// One inference configuration of the suite.
+struct Run {
+    kind: EncoderKind,
+    basis: Precision,
+    layers: Precision,
+    all_threads: bool,
+}
+
+/// The configurations timed at garment size number `index`: f32 (exact) and the default f16
+/// engine on 1 thread and all threads; at the first size also f16 basis with f32 layers and
+/// the static-only model (a scene without dynamics).
+fn runs(index: usize, cores: usize) -> Vec<Run> {
+    let (f32_, f16_) = (Precision::F32, Precision::F16);
+    let mut out = Vec::new();
+    let threads: &[bool] = if cores > 1 { &[false, true] } else { &[false] };
+    for &(basis, layers) in &[(f32_, f32_), (f16_, f16_)] {
+        for &all_threads in threads {
+            out.push(Run {
+                kind: EncoderKind::Disentangled,
+                basis,
+                layers,
+                all_threads,
+            });
+        }
+    }
+    if index == 0 {
+        out.push(Run {
+            kind: EncoderKind::Disentangled,
+            basis: f16_,
+            layers: f32_,
+            all_threads: false,
+        });
+        out.push(Run {
+            kind: EncoderKind::StaticOnly,
+            basis: f16_,
+            layers: f16_,
+            all_threads: false,
+        });
+    }
+    out
 }
 
 /// Runs the suite; `log` receives a line per finished measurement.
 pub fn run_suite(options: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<BenchReport, String> {
     let started = Instant::now();
-    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
     let avatar = bench_avatar()?;
-    let input_joints = crate::model::descriptors::select_input_joints(&avatar.skeleton.names, &DescriptorConfig::default().exclude_patterns).len();
+    let input_joints = crate::model::descriptors::select_input_joints(
+        &avatar.skeleton.names,
+        &DescriptorConfig::default().exclude_patterns,
+    )
+    .len();
     let mut inference = Vec::new();
+    let mut precision = Vec::new();
     let mut bandwidth = Vec::new();
-    for &dof in &options.dofs {
+    for (index, &dof) in options.dofs.iter().enumerate() {
         let garment = scene_with_dof(&avatar, dof)?;
-        let weights = random_weights(input_joints, garment.vertex_count())?;
-        let mut thread_counts = vec![1];
-        if cores > 1 {
-            thread_counts.push(cores);
-        }
-        for &threads in &thread_counts {
-            let b = bench_inference(&avatar, &garment, &weights, threads, options.frames)?;
-            log(&format!("inference {} DoF, {threads} thread(s): {:.3} ms/frame ({:.0} fps)", b.dof, b.ms_per_frame, b.fps));
+        let weights = random_weights_of(EncoderKind::Disentangled, input_joints, garment.vertex_count())?;
+        for run in runs(index, cores) {
+            let w = match run.kind {
+                EncoderKind::Disentangled => weights.clone(),
+                kind => random_weights_of(kind, input_joints, garment.vertex_count())?,
+            };
+            let engine_options = InferenceOptions {
+                threads: if run.all_threads { cores } else { 1 },
+                parallel_min_values: 0,
+                skin_body: true,
+                basis_precision: run.basis,
+                layer_precision: run.layers,
+            };
+            let b = bench_inference(&avatar, &garment, w, engine_options, options.frames)?;
+            log(&format!(
+                "inference {} DoF, {:?}, {}, {} thread(s): {:.3} ms/frame ({:.0} fps)",
+                b.dof, b.model, b.precision, b.threads, b.ms_per_frame, b.fps
+            ));
             inference.push(b);
         }
-        if dof == *options.dofs.iter().max().unwrap_or(&dof) {
-            for &threads in &thread_counts {
-                let m = measure_bandwidth(weights.basis.weight.len() * 4, threads, 5);
-                log(&format!("streaming read of {} MB, {threads} thread(s): {:.2} ms ({:.1} GB/s)", m.bytes / (1 << 20), m.ms_per_pass, m.gb_per_sec));
+        let error_frames = (2 * options.frames).max(30);
+        let e = measure_precision_error(
+            &avatar,
+            &garment,
+            weights.clone(),
+            InferenceOptions::default(),
+            error_frames,
+        )?;
+        log(&format!(
+            "{} error at {} DoF over {} frames: max {:.2e} m, mean {:.2e} m (offsets up to {:.3} m)",
+            e.precision, e.dof, e.frames, e.max_vertex_error_m, e.mean_vertex_error_m, e.max_offset_m
+        ));
+        precision.push(e);
+        let basis_values = weights.basis.weight.len();
+        drop(weights);
+        let thread_counts: &[usize] = if cores > 1 { &[1, cores] } else { &[1] };
+        for bytes in [basis_values * 4, basis_values * 2] {
+            for &threads in thread_counts {
+                let m = measure_bandwidth(bytes, threads, 5);
+                log(&format!(
+                    "streaming read of {:.1} MB, {threads} thread(s): {:.3} ms ({:.1} GB/s)",
+                    m.bytes as f64 / 1e6,
+                    m.ms_per_pass,
+                    m.gb_per_sec
+                ));
                 bandwidth.push(m);
             }
         }
     }
     let mut training = Vec::new();
-    for &batch in &options.train_batches {
-        let t = bench_training(batch, options.train_steps)?;
-        log(&format!("training step, batch {batch}: {:.1} ms, peak {:.0} MB", t.ms_per_step, t.peak_bytes as f64 / 1e6));
-        training.push(t);
+    for (k, &batch) in options.train_batches.iter().enumerate() {
+        let all = Effects::default();
+        let mut variants = vec![all.clone()];
+        if k == 0 {
+            variants.push(Effects {
+                collision: false,
+                ..all.clone()
+            });
+            variants.push(Effects {
+                bending: false,
+                ..all.clone()
+            });
+            variants.push(Effects {
+                dynamics: false,
+                ..all.clone()
+            });
+        }
+        for effects in variants {
+            let t = bench_training(batch, options.train_steps, effects)?;
+            log(&format!(
+                "training step, batch {batch}, {}: {:.1} ms, peak {:.0} MB",
+                super::report::effects_label(&t.effects),
+                t.ms_per_step,
+                t.peak_bytes as f64 / 1e6
+            ));
+            training.push(t);
+        }
     }
     let physics = if options.physics {
         let device = crate::train::device_for(crate::train::BackendKind::Cpu, false);
@@ -139,54 +278,22 @@ pub fn run_suite(options: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Be
     } else {
         None
     };
-    Ok(BenchReport { cores, inference, bandwidth, training, physics, total_secs: started.elapsed().as_secs_f64() })
+    Ok(BenchReport {
+        cores,
+        simd: crate::model::kernels::simd_available(),
+        inference,
+        precision,
+        bandwidth,
+        training,
+        physics,
+        total_secs: started.elapsed().as_secs_f64(),
+    })
 }
 
 impl BenchReport {
-    /// The report as Markdown tables, with ratios against the baselines of the same run.
+    /// The report as Markdown tables, with ratios against the baselines of the same run and
+    /// the gap to each goal of the issue.
     pub fn to_markdown(&self) -> String {
-        use std::fmt::Write as _;
-        let mut s = String::new();
-        let _ = writeln!(s, "### Inference: raw pose → garment and body meshes\n");
-        let _ = writeln!(s, "| DoF | threads | ms / frame | fps | fps, still body | weights MB | engine peak MB | frame / bandwidth floor |");
-        let _ = writeln!(s, "|---:|---:|---:|---:|---:|---:|---:|---:|");
-        for b in &self.inference {
-            let floor = self.bandwidth.iter().find(|m| m.threads == b.threads && m.bytes <= b.weight_bytes + (1 << 20) && b.weight_bytes <= m.bytes + (64 << 20));
-            let ratio = floor.map(|m| format!("{:.2}×", b.ms_per_frame / m.ms_per_pass)).unwrap_or_else(|| "—".into());
-            let _ = writeln!(
-                s,
-                "| {} | {} | {:.3} | {:.0} | {:.0} | {:.1} | {:.1} | {} |",
-                b.dof,
-                b.threads,
-                b.ms_per_frame,
-                b.fps,
-                b.still_fps,
-                b.weight_bytes as f64 / 1e6,
-                b.engine_peak_bytes as f64 / 1e6,
-                ratio
-            );
-        }
-        if !self.bandwidth.is_empty() {
-            let _ = writeln!(s, "\n### Memory-bandwidth floor (streaming read of a buffer the size of the largest basis)\n");
-            let _ = writeln!(s, "| MB | threads | ms / pass | GB/s |");
-            let _ = writeln!(s, "|---:|---:|---:|---:|");
-            for m in &self.bandwidth {
-                let _ = writeln!(s, "| {:.0} | {} | {:.2} | {:.1} |", m.bytes as f64 / 1e6, m.threads, m.ms_per_pass, m.gb_per_sec);
-            }
-        }
-        if !self.training.is_empty() {
-            let _ = writeln!(s, "\n### Training step (default scene, flex CPU backend)\n");
-            let _ = writeln!(s, "| batch | window s | fps | ms / step | steps / s | peak MB |");
-            let _ = writeln!(s, "|---:|---:|---:|---:|---:|---:|");
-            for t in &self.training {
-                let _ = writeln!(s, "| {} | {} | {} | {:.1} | {:.2} | {:.0} |", t.batch, t.window_secs, t.fps, t.ms_per_step, 1e3 / t.ms_per_step, t.peak_bytes as f64 / 1e6);
-            }
-        }
-        if let Some(p) = &self.physics {
-            let _ = writeln!(s, "\n### Physics terms at 10K DoF (forward + backward)\n");
-            s.push_str(&p.to_markdown());
-        }
-        let _ = writeln!(s, "\n{} cores; the suite took {:.0} s.", self.cores, self.total_secs);
-        s
+        write_markdown(self)
     }
 }

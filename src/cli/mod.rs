@@ -5,6 +5,7 @@ mod app_launcher;
 mod bake;
 mod bench;
 mod inspect;
+mod report;
 mod screenshot;
 mod train;
 
@@ -34,12 +35,16 @@ pub enum Command {
     },
     /// Train a model on a scene headless (default: the built-in scene).
     Train(train::TrainArgs),
+    /// Print the §4.2 metrics of a trained model on its scene's test split.
+    Eval(train::EvalArgs),
     /// Bake a motion with a trained model into PC2, MDD, OBJ sequence or glTF.
     Bake(bake::BakeArgs),
     /// Bake a motion with the reference simulator (the paper's Eq. 8 baseline).
     Simulate(bake::SimulateArgs),
     /// Measure inference fps (10K/250K DoF), the bandwidth floor, training and physics costs.
     Bench(bench::BenchArgs),
+    /// Measure what accuracy costs in time and reproduce the paper's claims; writes docs/REPORT.md.
+    Report(report::ReportArgs),
     /// Render the viewport offscreen to a PNG (works without a display).
     Screenshot(screenshot::ScreenshotArgs),
 }
@@ -54,9 +59,11 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         }),
         Some(Command::Inspect { file }) => inspect::run(&file),
         Some(Command::Train(args)) => train::run(args),
+        Some(Command::Eval(args)) => train::eval(args),
         Some(Command::Bake(args)) => bake::run(args),
         Some(Command::Simulate(args)) => bake::simulate(args),
         Some(Command::Bench(args)) => bench::run(args),
+        Some(Command::Report(args)) => report::run(args),
         Some(Command::Screenshot(args)) => screenshot::run(args),
     }
 }

@@ -210,3 +210,31 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     handle.join();
     Ok(())
 }
+
+/// Arguments of `eval`.
+#[derive(clap::Args, Debug)]
+pub struct EvalArgs {
+    /// Run folder (or checkpoint folder) of a trained model.
+    pub checkpoint: PathBuf,
+    /// Split to evaluate: train, validation or test.
+    #[arg(long, default_value = "test")]
+    pub split: String,
+    /// Dynamic weight w in [0, 2].
+    #[arg(long, default_value_t = 1.0)]
+    pub w: f32,
+}
+
+/// Runs `eval`: prints the §4.2 metrics per motion and their mean, as JSON.
+pub fn eval(args: EvalArgs) -> anyhow::Result<()> {
+    anyhow::ensure!((0.0..=2.0).contains(&args.w), "w = {} is outside [0, 2]", args.w);
+    let split = match args.split.as_str() {
+        "train" => Split::Train,
+        "validation" => Split::Validation,
+        "test" => Split::Test,
+        other => anyhow::bail!("unknown split '{other}' (train, validation, test)"),
+    };
+    let trained = neural_cloth::train::load_trained(&args.checkpoint)?;
+    let report = neural_cloth::train::evaluate(&trained, split, args.w)?;
+    println!("{}", serde_json::to_string_pretty(&report)?);
+    Ok(())
+}

@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use super::units::{Units, largest_extent};
-use super::{IoError, file_stem, read_bytes};
+use super::{IoError, read_bytes};
 use crate::geometry::{Mat4, Quat, Vec3};
 use crate::scene::{JointTransform, Motion, Pose, Skeleton};
 
@@ -31,7 +31,7 @@ pub enum BvhChannel {
 }
 
 impl BvhChannel {
-    fn parse(s: &str) -> Option<Self> {
+    pub(crate) fn parse(s: &str) -> Option<Self> {
         Some(match s.to_ascii_lowercase().as_str() {
             "xposition" => Self::Xposition,
             "yposition" => Self::Yposition,
@@ -87,181 +87,7 @@ pub fn load_bvh(path: &Path) -> Result<Bvh, IoError> {
     Bvh::parse(&read_bytes(path)?, path)
 }
 
-/// Token cursor over the file with 1-based line numbers.
-struct Cursor<'a> {
-    tokens: Vec<(usize, &'a str)>,
-    at: usize,
-    path: &'a Path,
-}
-
-impl<'a> Cursor<'a> {
-    fn syntax(&self, line: usize, reason: impl Into<String>) -> IoError {
-        IoError::Syntax { format: "BVH", line, reason: reason.into(), path: self.path.to_path_buf() }
-    }
-
-    fn last_line(&self) -> usize {
-        self.tokens.last().map(|t| t.0).unwrap_or(1)
-    }
-
-    fn next(&mut self, expecting: &str) -> Result<(usize, &'a str), IoError> {
-        let Some(&t) = self.tokens.get(self.at) else {
-            return Err(IoError::Truncated { what: format!("BVH ends at line {} while expecting {expecting}", self.last_line()), path: self.path.to_path_buf() });
-        };
-        self.at += 1;
-        Ok(t)
-    }
-
-    fn expect(&mut self, word: &str) -> Result<usize, IoError> {
-        let (line, t) = self.next(&format!("'{word}'"))?;
-        if t.eq_ignore_ascii_case(word) { Ok(line) } else { Err(self.syntax(line, format!("expected '{word}', found '{t}'"))) }
-    }
-
-    fn float(&mut self, what: &str) -> Result<f32, IoError> {
-        let (line, t) = self.next(what)?;
-        let v: f32 = t.parse().map_err(|_| self.syntax(line, format!("{what}: '{t}' is not a number")))?;
-        if v.is_finite() { Ok(v) } else { Err(IoError::NonFinite { what: format!("{what} at line {line}"), path: self.path.to_path_buf() }) }
-    }
-
-    fn vec3(&mut self, what: &str) -> Result<Vec3, IoError> {
-        Ok(Vec3::new(self.float(what)?, self.float(what)?, self.float(what)?))
-    }
-
-    /// The rest of the current line (a joint name), skipping a trailing `{`.
-    fn name(&mut self, line: usize) -> Result<String, IoError> {
-        let mut parts = Vec::new();
-        while let Some(&(l, t)) = self.tokens.get(self.at) {
-            if l != line || t == "{" {
-                break;
-            }
-            parts.push(t);
-            self.at += 1;
-        }
-        if parts.is_empty() { Err(self.syntax(line, "joint without a name")) } else { Ok(parts.join(" ")) }
-    }
-
-    /// The value after `Key:` where the key may be glued to the colon and/or the value.
-    fn keyed_value(&mut self, key: &str) -> Result<(usize, &'a str), IoError> {
-        let (line, t) = self.next(key)?;
-        let lower = t.to_ascii_lowercase();
-        let Some(rest) = lower.strip_prefix(&key.to_ascii_lowercase()) else {
-            return Err(self.syntax(line, format!("expected '{key}:', found '{t}'")));
-        };
-        let rest = rest.trim_start_matches(':');
-        if !rest.is_empty() {
-            return Ok((line, &t[t.len() - rest.len()..]));
-        }
-        let (line, v) = self.next(key)?;
-        if v == ":" { self.next(key) } else { Ok((line, v.trim_start_matches(':'))) }
-    }
-}
-
 impl Bvh {
-    /// Parses BVH bytes; `path` names the motion and ends error messages.
-    pub fn parse(bytes: &[u8], path: &Path) -> Result<Self, IoError> {
-        let text = String::from_utf8_lossy(bytes);
-        let tokens = text.lines().enumerate().flat_map(|(k, l)| l.split_whitespace().map(move |t| (k + 1, t))).collect();
-        let mut c = Cursor { tokens, at: 0, path };
-        let (line, first) = c.next("'HIERARCHY'")?;
-        if !first.eq_ignore_ascii_case("HIERARCHY") {
-            return Err(c.syntax(line, format!("not a BVH file: expected 'HIERARCHY', found '{first}'")));
-        }
-        let root_line = c.expect("ROOT")?;
-        let mut joints = vec![BvhJoint { name: c.name(root_line)?, parent: None, offset: Vec3::zeros(), channels: Vec::new(), first_channel: 0, end_site: None }];
-        c.expect("{")?;
-        let mut stack = vec![0usize];
-        let mut channel_count = 0usize;
-        while let Some(&top) = stack.last() {
-            let (line, t) = c.next(&format!("the end of joint '{}'", joints[top].name))?;
-            match t.to_ascii_uppercase().as_str() {
-                "OFFSET" => joints[top].offset = c.vec3("OFFSET")?,
-                "CHANNELS" => {
-                    let (l, n) = c.next("a channel count")?;
-                    let n: usize = n.parse().ok().filter(|&n| n <= 6).ok_or_else(|| c.syntax(l, format!("channel count '{n}' (0 to 6 expected)")))?;
-                    let mut channels = Vec::with_capacity(n);
-                    for _ in 0..n {
-                        let (l, name) = c.next("a channel name")?;
-                        let ch = BvhChannel::parse(name).ok_or_else(|| c.syntax(l, format!("unknown channel '{name}'")))?;
-                        if channels.contains(&ch) {
-                            return Err(c.syntax(l, format!("channel '{name}' repeated")));
-                        }
-                        channels.push(ch);
-                    }
-                    joints[top].first_channel = channel_count;
-                    channel_count += n;
-                    joints[top].channels = channels;
-                }
-                "JOINT" => {
-                    let name = c.name(line)?;
-                    joints.push(BvhJoint { name, parent: Some(top), offset: Vec3::zeros(), channels: Vec::new(), first_channel: channel_count, end_site: None });
-                    c.expect("{")?;
-                    stack.push(joints.len() - 1);
-                }
-                "END" => {
-                    c.expect("Site")?;
-                    c.expect("{")?;
-                    c.expect("OFFSET")?;
-                    joints[top].end_site = Some(c.vec3("End Site OFFSET")?);
-                    c.expect("}")?;
-                }
-                "}" => {
-                    stack.pop();
-                }
-                _ => return Err(c.syntax(line, format!("unexpected '{t}' in joint '{}'", joints[top].name))),
-            }
-        }
-        let (line, t) = c.next("'MOTION'")?;
-        if t.eq_ignore_ascii_case("ROOT") {
-            return Err(IoError::Unsupported { what: format!("a second ROOT at line {line} (one skeleton per file)"), path: path.to_path_buf() });
-        }
-        if !t.eq_ignore_ascii_case("MOTION") {
-            return Err(c.syntax(line, format!("expected 'MOTION', found '{t}'")));
-        }
-        let (line, frames) = c.keyed_value("Frames")?;
-        let frames: usize = frames.parse().map_err(|_| c.syntax(line, format!("frame count '{frames}'")))?;
-        if frames == 0 {
-            return Err(c.syntax(line, "the file declares 0 frames"));
-        }
-        c.expect("Frame")?;
-        let (line, ft) = c.keyed_value("Time")?;
-        let frame_time_secs: f32 = ft.parse().map_err(|_| c.syntax(line, format!("frame time '{ft}'")))?;
-        if !(frame_time_secs.is_finite() && (1e-4..=10.0).contains(&frame_time_secs)) {
-            return Err(c.syntax(line, format!("frame time {ft} s is outside 0.0001..10 s")));
-        }
-        if channel_count == 0 {
-            return Err(IoError::Unsupported { what: "a BVH without channels".into(), path: path.to_path_buf() });
-        }
-        let expected = frames.checked_mul(channel_count).ok_or_else(|| c.syntax(line, "frame count too large"))?;
-        let remaining = c.tokens.len() - c.at;
-        let mut values = Vec::with_capacity(expected.min(remaining));
-        for k in 0..expected {
-            let Some(&(l, t)) = c.tokens.get(c.at) else {
-                return Err(IoError::Truncated {
-                    what: format!("BVH declares {frames} frames of {channel_count} values, data ends in frame {} (line {})", k / channel_count.max(1) + 1, c.last_line()),
-                    path: path.to_path_buf(),
-                });
-            };
-            c.at += 1;
-            let v: f32 = t.parse().map_err(|_| c.syntax(l, format!("'{t}' is not a number")))?;
-            if !v.is_finite() {
-                return Err(IoError::NonFinite { what: format!("frame {} value {} at line {l}", k / channel_count + 1, k % channel_count + 1), path: path.to_path_buf() });
-            }
-            values.push(v);
-        }
-        let mut warnings = Vec::new();
-        if c.at < c.tokens.len() {
-            warnings.push(format!("{} values after the last declared frame ignored", c.tokens.len() - c.at));
-        }
-        let mut bvh = Self { name: file_stem(path), path: path.to_path_buf(), joints, frame_time_secs, channel_count, frames, values, warnings };
-        let extent = largest_extent(&bvh.rest_points());
-        let zero: Vec<&str> =
-            bvh.joints.iter().filter(|j| j.parent.is_some() && j.offset.norm() <= 1e-6 * extent.max(1e-3)).map(|j| j.name.as_str()).collect();
-        if !zero.is_empty() {
-            let msg = format!("{} zero-length bones (joint on its parent): {}", zero.len(), super::gltf_avatar::short_list(&zero, 8));
-            bvh.warnings.push(msg);
-        }
-        Ok(bvh)
-    }
-
     /// Number of frames.
     pub fn frame_count(&self) -> usize {
         self.frames
@@ -282,7 +108,10 @@ impl Bvh {
         let Some(joint) = self.joints.get(j) else {
             return (Vec3::zeros(), Quat::identity());
         };
-        let frame = self.values.get(f * self.channel_count..(f + 1) * self.channel_count).unwrap_or(&[]);
+        let frame = self
+            .values
+            .get(f * self.channel_count..(f + 1) * self.channel_count)
+            .unwrap_or(&[]);
         let mut t = joint.offset;
         let mut q = Quat::identity();
         for (k, ch) in joint.channels.iter().enumerate() {
@@ -293,9 +122,15 @@ impl Bvh {
                 BvhChannel::Xposition => t.x = v,
                 BvhChannel::Yposition => t.y = v,
                 BvhChannel::Zposition => t.z = v,
-                BvhChannel::Xrotation => q *= Quat::from_axis_angle(&Vec3::x_axis(), v.to_radians()),
-                BvhChannel::Yrotation => q *= Quat::from_axis_angle(&Vec3::y_axis(), v.to_radians()),
-                BvhChannel::Zrotation => q *= Quat::from_axis_angle(&Vec3::z_axis(), v.to_radians()),
+                BvhChannel::Xrotation => {
+                    q *= Quat::from_axis_angle(&Vec3::x_axis(), v.to_radians())
+                }
+                BvhChannel::Yrotation => {
+                    q *= Quat::from_axis_angle(&Vec3::y_axis(), v.to_radians())
+                }
+                BvhChannel::Zrotation => {
+                    q *= Quat::from_axis_angle(&Vec3::z_axis(), v.to_radians())
+                }
             }
         }
         (t, q)
@@ -319,7 +154,12 @@ impl Bvh {
     pub fn rest_positions(&self) -> Vec<Vec3> {
         let mut out: Vec<Vec3> = Vec::with_capacity(self.joints.len());
         for joint in &self.joints {
-            let p = joint.parent.and_then(|p| out.get(p)).copied().unwrap_or_else(Vec3::zeros) + joint.offset;
+            let p = joint
+                .parent
+                .and_then(|p| out.get(p))
+                .copied()
+                .unwrap_or_else(Vec3::zeros)
+                + joint.offset;
             out.push(p);
         }
         out
@@ -328,7 +168,12 @@ impl Bvh {
     /// Rest positions of the joints followed by those of the end sites.
     pub fn rest_points(&self) -> Vec<Vec3> {
         let joints = self.rest_positions();
-        let ends: Vec<Vec3> = self.joints.iter().zip(&joints).filter_map(|(j, p)| j.end_site.map(|e| p + e)).collect();
+        let ends: Vec<Vec3> = self
+            .joints
+            .iter()
+            .zip(&joints)
+            .filter_map(|(j, p)| j.end_site.map(|e| p + e))
+            .collect();
         joints.into_iter().chain(ends).collect()
     }
 
@@ -343,34 +188,72 @@ impl Bvh {
         let (units, scale) = self.resolve_units(units);
         let mut names: Vec<String> = Vec::with_capacity(self.joints.len());
         for (j, joint) in self.joints.iter().enumerate() {
-            names.push(if names.contains(&joint.name) { format!("{}_{j}", joint.name) } else { joint.name.clone() });
+            names.push(if names.contains(&joint.name) {
+                format!("{}_{j}", joint.name)
+            } else {
+                joint.name.clone()
+            });
         }
         let parents = self.joints.iter().map(|j| j.parent).collect();
-        let rest_local = self.joints.iter().map(|j| JointTransform { translation: j.offset, ..Default::default() }).collect();
+        let rest_local = self
+            .joints
+            .iter()
+            .map(|j| JointTransform {
+                translation: j.offset,
+                ..Default::default()
+            })
+            .collect();
         let n = self.joints.len();
-        let roots = self.joints.iter().map(|j| if j.parent.is_none() { Mat4::new_scaling(scale) } else { Mat4::identity() }).collect();
-        let err = |source| IoError::Scene { source, path: self.path.clone() };
-        let mut sk = Skeleton::new(names, parents, rest_local, vec![Mat4::identity(); n], roots).map_err(err)?;
+        let roots = self
+            .joints
+            .iter()
+            .map(|j| {
+                if j.parent.is_none() {
+                    Mat4::new_scaling(scale)
+                } else {
+                    Mat4::identity()
+                }
+            })
+            .collect();
+        let err = |source| IoError::Scene {
+            source,
+            path: self.path.clone(),
+        };
+        let mut sk = Skeleton::new(names, parents, rest_local, vec![Mat4::identity(); n], roots)
+            .map_err(err)?;
         let rest = sk.world_from_joint(&sk.rest_pose());
-        sk.joint_from_bind = rest.iter().map(|m| m.try_inverse().unwrap_or_else(Mat4::identity)).collect();
+        sk.joint_from_bind = rest
+            .iter()
+            .map(|m| m.try_inverse().unwrap_or_else(Mat4::identity))
+            .collect();
         Ok((sk, units))
     }
 
     /// The motion on the BVH's own skeleton (see [`Bvh::to_skeleton`]) at the file's frame
     /// rate, for inspecting and playing a BVH by itself. Position channels of non-root joints
     /// cannot be represented and are dropped with a warning in the returned list.
-    pub fn to_motion_for_own_skeleton(&self, units: Units) -> Result<(Skeleton, Motion, Vec<String>), IoError> {
+    pub fn to_motion_for_own_skeleton(
+        &self,
+        units: Units,
+    ) -> Result<(Skeleton, Motion, Vec<String>), IoError> {
         let (skeleton, _) = self.to_skeleton(units)?;
         let mut warnings = Vec::new();
         let moving: Vec<&str> = self
             .joints
             .iter()
             .enumerate()
-            .filter(|(j, joint)| joint.parent.is_some() && (0..self.frame_count()).any(|f| (self.local(f, *j).0 - joint.offset).norm() > 1e-6))
+            .filter(|(j, joint)| {
+                joint.parent.is_some()
+                    && (0..self.frame_count())
+                        .any(|f| (self.local(f, *j).0 - joint.offset).norm() > 1e-6)
+            })
             .map(|(_, joint)| joint.name.as_str())
             .collect();
         if !moving.is_empty() {
-            warnings.push(format!("position channels of non-root joints ignored: {}", super::gltf_avatar::short_list(&moving, 8)));
+            warnings.push(format!(
+                "position channels of non-root joints ignored: {}",
+                super::gltf_avatar::short_list(&moving, 8)
+            ));
         }
         let frames = (0..self.frame_count())
             .map(|f| Pose {
@@ -378,7 +261,12 @@ impl Bvh {
                 root_translation: self.local(f, 0).0,
             })
             .collect();
-        let motion = Motion::new(self.name.clone(), self.fps(), frames, skeleton.len()).map_err(|source| IoError::Scene { source, path: self.path.clone() })?;
+        let motion = Motion::new(self.name.clone(), self.fps(), frames, skeleton.len()).map_err(
+            |source| IoError::Scene {
+                source,
+                path: self.path.clone(),
+            },
+        )?;
         Ok((skeleton, motion, warnings))
     }
 }
@@ -405,7 +293,11 @@ mod tests {
         // Frame 1: root Z rotation of 90 degrees, spine Z rotation of 90 degrees.
         let w = b.world(1);
         assert!((w[0].1 - Vec3::new(1.0, 17.0, 3.0)).norm() < 1e-6);
-        assert!((w[1].1 - Vec3::new(-1.0, 17.0, 3.0)).norm() < 1e-5, "{:?}", w[1].1);
+        assert!(
+            (w[1].1 - Vec3::new(-1.0, 17.0, 3.0)).norm() < 1e-5,
+            "{:?}",
+            w[1].1
+        );
         let (_, q) = b.local(1, 1);
         assert!((q.angle() - std::f32::consts::FRAC_PI_2).abs() < 1e-5);
     }
@@ -414,25 +306,49 @@ mod tests {
     fn channel_order_is_respected() {
         let b = parse(&SMALL.replace("1 17 3 90 0 0 0 0 90", "0 0 0 90 90 0 0 0 0")).unwrap();
         let (_, q) = b.local(1, 0);
-        let zy = Quat::from_axis_angle(&Vec3::z_axis(), 1.5707964) * Quat::from_axis_angle(&Vec3::y_axis(), 1.5707964);
+        let zy = Quat::from_axis_angle(&Vec3::z_axis(), 1.5707964)
+            * Quat::from_axis_angle(&Vec3::y_axis(), 1.5707964);
         assert!(q.angle_to(&zy) < 1e-5);
     }
 
     #[test]
     fn errors_are_typed() {
-        assert!(matches!(parse(&SMALL.replace("1 17 3 90 0 0 0 0 90\n", "")), Err(IoError::Truncated { .. })));
-        assert!(matches!(parse(&SMALL.replace("0 0 90\n", "0 nan 90\n")), Err(IoError::NonFinite { .. })));
-        assert!(matches!(parse(&SMALL.replace("Xrotation\n JOINT", "Wrotation\n JOINT")), Err(IoError::Syntax { line: 5, .. })));
-        assert!(matches!(parse(&SMALL.replace("Frame Time: .5", "Frame Time: 0")), Err(IoError::Syntax { line: 18, .. })));
-        assert!(matches!(parse("hello"), Err(IoError::Syntax { line: 1, .. })));
-        assert!(matches!(parse(&SMALL[..SMALL.find("JOINT").unwrap()]), Err(IoError::Truncated { .. })));
+        assert!(matches!(
+            parse(&SMALL.replace("1 17 3 90 0 0 0 0 90\n", "")),
+            Err(IoError::Truncated { .. })
+        ));
+        assert!(matches!(
+            parse(&SMALL.replace("0 0 90\n", "0 nan 90\n")),
+            Err(IoError::NonFinite { .. })
+        ));
+        assert!(matches!(
+            parse(&SMALL.replace("Xrotation\n JOINT", "Wrotation\n JOINT")),
+            Err(IoError::Syntax { line: 5, .. })
+        ));
+        assert!(matches!(
+            parse(&SMALL.replace("Frame Time: .5", "Frame Time: 0")),
+            Err(IoError::Syntax { line: 18, .. })
+        ));
+        assert!(matches!(
+            parse("hello"),
+            Err(IoError::Syntax { line: 1, .. })
+        ));
+        assert!(matches!(
+            parse(&SMALL[..SMALL.find("JOINT").unwrap()]),
+            Err(IoError::Truncated { .. })
+        ));
         let e = parse(&SMALL.replace("0 0 90\n", "0 zero 90\n")).unwrap_err();
         assert!(e.to_string().ends_with("t.bvh"), "{e}");
     }
 
     #[test]
     fn glued_headers_and_own_skeleton() {
-        let b = parse(&SMALL.replace("Frames: 2", "Frames:2").replace("Frame Time: .5", "Frame Time:\t.5")).unwrap();
+        let b = parse(
+            &SMALL
+                .replace("Frames: 2", "Frames:2")
+                .replace("Frame Time: .5", "Frame Time:\t.5"),
+        )
+        .unwrap();
         let (sk, motion, warnings) = b.to_motion_for_own_skeleton(Units::Metres).unwrap();
         assert!(warnings.is_empty());
         assert_eq!(motion.frame_count(), 2);

@@ -36,7 +36,11 @@ struct Track {
 impl Track {
     fn value_at_key(&self, k: usize) -> &[f32] {
         let d = self.dims;
-        let start = if self.interp == Interp::Cubic { (3 * k + 1) * d } else { k * d };
+        let start = if self.interp == Interp::Cubic {
+            (3 * k + 1) * d
+        } else {
+            k * d
+        };
         self.values.get(start..start + d).unwrap_or(&[])
     }
 
@@ -60,7 +64,11 @@ impl Track {
         }
         let (t0, t1) = (self.times[k], self.times[k + 1]);
         let dt = t1 - t0;
-        let u = if dt > 0.0 { ((t - t0) / dt).clamp(0.0, 1.0) } else { 0.0 };
+        let u = if dt > 0.0 {
+            ((t - t0) / dt).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         let (a, b) = (self.value_at_key(k), self.value_at_key(k + 1));
         match self.interp {
             Interp::Linear if rotation => {
@@ -70,10 +78,21 @@ impl Track {
             }
             Interp::Cubic => {
                 let d = self.dims;
-                let out_a = self.values.get((3 * k + 2) * d..(3 * k + 3) * d).unwrap_or(&[]);
-                let in_b = self.values.get((3 * k + 3) * d..(3 * k + 4) * d).unwrap_or(&[]);
+                let out_a = self
+                    .values
+                    .get((3 * k + 2) * d..(3 * k + 3) * d)
+                    .unwrap_or(&[]);
+                let in_b = self
+                    .values
+                    .get((3 * k + 3) * d..(3 * k + 4) * d)
+                    .unwrap_or(&[]);
                 let (u2, u3) = (u * u, u * u * u);
-                let (h00, h10, h01, h11) = (2.0 * u3 - 3.0 * u2 + 1.0, u3 - 2.0 * u2 + u, -2.0 * u3 + 3.0 * u2, u3 - u2);
+                let (h00, h10, h01, h11) = (
+                    2.0 * u3 - 3.0 * u2 + 1.0,
+                    u3 - 2.0 * u2 + u,
+                    -2.0 * u3 + 3.0 * u2,
+                    u3 - u2,
+                );
                 (0..d)
                     .map(|c| {
                         let g = |s: &[f32]| s.get(c).copied().unwrap_or(0.0);
@@ -91,7 +110,11 @@ fn quat_of(v: &[f32]) -> Quat {
     let g = |c: usize| v.get(c).copied().unwrap_or(0.0);
     let q = nalgebra::Quaternion::new(g(3), g(0), g(1), g(2));
     let n = q.norm();
-    if n.is_finite() && n > 1e-8 { Quat::new_unchecked(q / n) } else { Quat::identity() }
+    if n.is_finite() && n > 1e-8 {
+        Quat::new_unchecked(q / n)
+    } else {
+        Quat::identity()
+    }
 }
 
 fn vec3_of(v: &[f32]) -> Vec3 {
@@ -119,18 +142,38 @@ pub(crate) fn load_motions(
 ) -> Result<Vec<Motion>, IoError> {
     let mut motions = Vec::new();
     for anim in doc.doc.animations() {
-        let name = anim.name().filter(|n| !n.trim().is_empty()).map(str::to_string).unwrap_or_else(|| format!("animation {}", anim.index()));
-        let mut tracks: Vec<JointTracks> = (0..skeleton.len()).map(|_| JointTracks::default()).collect();
+        let name = anim
+            .name()
+            .filter(|n| !n.trim().is_empty())
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("animation {}", anim.index()));
+        let mut tracks: Vec<JointTracks> = (0..skeleton.len())
+            .map(|_| JointTracks::default())
+            .collect();
         let (mut off_joint, mut morph) = (0usize, 0usize);
         let mut t_max = 0.0f32;
-        for channel in anim.channels() {
+        // Channel targets are not checked by the crate's validation: read them from the JSON.
+        let json_channels = doc
+            .doc
+            .as_json()
+            .animations
+            .get(anim.index())
+            .map(|a| a.channels.as_slice())
+            .unwrap_or(&[]);
+        for (channel, raw) in anim.channels().zip(json_channels) {
             let what = format!("animation '{name}' channel {}", channel.index());
-            let property = channel.target().property();
+            let gltf::json::validation::Checked::Valid(property) = raw.target.path else {
+                return Err(doc.invalid(format!("{what}: unknown target path")));
+            };
+            let node = raw.target.node.value();
+            if node >= doc.parents.len() {
+                return Err(doc.invalid(format!("{what}: target node {node} does not exist")));
+            }
             if property == gltf::animation::Property::MorphTargetWeights {
                 morph += 1;
                 continue;
             }
-            let Some(&j) = joint_of_node.get(&channel.target().node().index()) else {
+            let Some(&j) = joint_of_node.get(&node) else {
                 off_joint += 1;
                 continue;
             };
@@ -144,24 +187,36 @@ pub(crate) fn load_motions(
             }
         }
         if off_joint > 0 {
-            warnings.push(format!("animation '{name}': {off_joint} channels on non-joint nodes ignored"));
+            warnings.push(format!(
+                "animation '{name}': {off_joint} channels on non-joint nodes ignored"
+            ));
         }
         if morph > 0 {
-            warnings.push(format!("animation '{name}': {morph} morph-weight channels ignored"));
+            warnings.push(format!(
+                "animation '{name}': {morph} morph-weight channels ignored"
+            ));
         }
         if t_max * fps > MAX_FRAMES {
-            return Err(IoError::Unsupported { what: format!("animation '{name}' lasts {t_max} s (too long to resample)"), path: doc.path.clone() });
+            return Err(IoError::Unsupported {
+                what: format!("animation '{name}' lasts {t_max} s (too long to resample)"),
+                path: doc.path.clone(),
+            });
         }
         let trunk = trunk_of(skeleton);
-        let folded: Vec<usize> = trunk.iter().copied().filter(|&j| j != 0 && tracks[j].translation.is_some()).collect();
+        let folded: Vec<usize> = trunk
+            .iter()
+            .copied()
+            .filter(|&j| j != 0 && tracks[j].translation.is_some())
+            .collect();
         for (j, jt) in tracks.iter().enumerate() {
             let rest = &skeleton.rest_local[j];
-            if let Some(t) = &jt.translation {
-                if j != 0 && !folded.contains(&j) {
-                    let dev = max_deviation(t, &rest.translation);
-                    if dev > length_tolerance {
-                        warnings.push(format!("animation '{name}': translation of joint '{}' ignored (differs from rest by up to {dev:.4} file units)", skeleton.names[j]));
-                    }
+            if let Some(t) = &jt.translation
+                && j != 0
+                && !folded.contains(&j)
+            {
+                let dev = max_deviation(t, &rest.translation);
+                if dev > length_tolerance {
+                    warnings.push(format!("animation '{name}': translation of joint '{}' ignored (differs from rest by up to {dev:.4} file units)", skeleton.names[j]));
                 }
             }
             if let Some(s) = &jt.scale {
@@ -177,13 +232,23 @@ pub(crate) fn load_motions(
                 skeleton.names[deepest]
             ));
         }
-        let count = (t_max * fps).round() as usize + 1;
+        let count = (t_max * fps + 1e-3).floor() as usize + 1;
         let mut frames = Vec::with_capacity(count);
         for k in 0..count {
             let t = (k as f32 / fps).min(t_max);
-            frames.push(sample_pose(skeleton, &tracks, &trunk, folded.last().copied(), t));
+            frames.push(sample_pose(
+                skeleton,
+                &tracks,
+                &trunk,
+                folded.last().copied(),
+                t,
+            ));
         }
-        let motion = Motion::new(name, fps, frames, skeleton.len()).map_err(|source| IoError::Scene { source, path: doc.path.clone() })?;
+        let motion =
+            Motion::new(name, fps, frames, skeleton.len()).map_err(|source| IoError::Scene {
+                source,
+                path: doc.path.clone(),
+            })?;
         motions.push(motion);
     }
     Ok(motions)
@@ -203,16 +268,29 @@ fn trunk_of(skeleton: &Skeleton) -> Vec<usize> {
 }
 
 fn max_deviation(track: &Track, rest: &Vec3) -> f32 {
-    (0..track.keys()).map(|k| (vec3_of(track.value_at_key(k)) - rest).abs().max()).fold(0.0, f32::max)
+    (0..track.keys())
+        .map(|k| (vec3_of(track.value_at_key(k)) - rest).abs().max())
+        .fold(0.0, f32::max)
 }
 
 /// The pose at time `t`. When `fold_to` is a trunk joint, the trunk's animated translations
 /// are replaced by an equivalent translation of joint 0.
-fn sample_pose(skeleton: &Skeleton, tracks: &[JointTracks], trunk: &[usize], fold_to: Option<usize>, t: f32) -> Pose {
+fn sample_pose(
+    skeleton: &Skeleton,
+    tracks: &[JointTracks],
+    trunk: &[usize],
+    fold_to: Option<usize>,
+    t: f32,
+) -> Pose {
     let rotations: Vec<Quat> = tracks
         .iter()
         .zip(&skeleton.rest_local)
-        .map(|(jt, rest)| jt.rotation.as_ref().map(|r| quat_of(&r.sample(t, true))).unwrap_or(rest.rotation))
+        .map(|(jt, rest)| {
+            jt.rotation
+                .as_ref()
+                .map(|r| quat_of(&r.sample(t, true)))
+                .unwrap_or(rest.rotation)
+        })
         .collect();
     let translation_at = |j: usize| -> Vec3 {
         match tracks.get(j).and_then(|jt| jt.translation.as_ref()) {
@@ -227,16 +305,28 @@ fn sample_pose(skeleton: &Skeleton, tracks: &[JointTracks], trunk: &[usize], fol
             let mut m = skeleton.world_from_root_parent[0];
             for &j in trunk {
                 let rest = &skeleton.rest_local[j];
-                let translation = if j == 0 || animated { translation_at(j) } else { rest.translation };
-                m *= JointTransform { translation, rotation: rotations[j], scale: rest.scale }.to_matrix();
+                let translation = if j == 0 || animated {
+                    translation_at(j)
+                } else {
+                    rest.translation
+                };
+                m *= JointTransform {
+                    translation,
+                    rotation: rotations[j],
+                    scale: rest.scale,
+                }
+                .to_matrix();
                 if j == end {
                     break;
                 }
             }
             m
         };
-        let delta = chain_world(true).fixed_view::<3, 1>(0, 3) - chain_world(false).fixed_view::<3, 1>(0, 3);
-        let linear = skeleton.world_from_root_parent[0].fixed_view::<3, 3>(0, 0).into_owned();
+        let delta = chain_world(true).fixed_view::<3, 1>(0, 3)
+            - chain_world(false).fixed_view::<3, 1>(0, 3);
+        let linear = skeleton.world_from_root_parent[0]
+            .fixed_view::<3, 3>(0, 0)
+            .into_owned();
         if let Some(inv) = linear.try_inverse() {
             let shift = inv * delta;
             if shift.iter().all(|v| v.is_finite()) {
@@ -244,11 +334,19 @@ fn sample_pose(skeleton: &Skeleton, tracks: &[JointTracks], trunk: &[usize], fol
             }
         }
     }
-    Pose { rotations, root_translation }
+    Pose {
+        rotations,
+        root_translation,
+    }
 }
 
 /// Reads and validates the sampler of `channel`.
-fn read_track(doc: &GltfDoc, channel: &gltf::animation::Channel, property: gltf::animation::Property, what: &str) -> Result<Track, IoError> {
+fn read_track(
+    doc: &GltfDoc,
+    channel: &gltf::animation::Channel,
+    property: gltf::animation::Property,
+    what: &str,
+) -> Result<Track, IoError> {
     let sampler = channel.sampler();
     let interp = match sampler.interpolation() {
         gltf::animation::Interpolation::Linear => Interp::Linear,
@@ -278,13 +376,22 @@ fn read_track(doc: &GltfDoc, channel: &gltf::animation::Channel, property: gltf:
             path: doc.path.clone(),
         });
     }
-    let mut track = Track { times, values, dims, interp };
+    let mut track = Track {
+        times,
+        values,
+        dims,
+        interp,
+    };
     if rotation {
         for k in 0..track.keys() {
             let v = track.value_at_key(k);
             let g = |c: usize| v.get(c).copied().unwrap_or(f32::NAN);
             let q = doc.quat([g(0), g(1), g(2), g(3)], &format!("{what} keyframe {k}"))?;
-            let start = if interp == Interp::Cubic { (3 * k + 1) * 4 } else { k * 4 };
+            let start = if interp == Interp::Cubic {
+                (3 * k + 1) * 4
+            } else {
+                k * 4
+            };
             if let Some(slot) = track.values.get_mut(start..start + 4) {
                 slot.copy_from_slice(&[q.i, q.j, q.k, q.w]);
             }
@@ -298,7 +405,12 @@ mod tests {
     use super::*;
 
     fn track(interp: Interp, values: Vec<f32>) -> Track {
-        Track { times: vec![0.0, 1.0], values, dims: 3, interp }
+        Track {
+            times: vec![0.0, 1.0],
+            values,
+            dims: 3,
+            interp,
+        }
     }
 
     #[test]
@@ -328,7 +440,12 @@ mod tests {
     fn rotation_slerp_is_unit() {
         let a = Quat::identity();
         let b = Quat::from_axis_angle(&Vec3::y_axis(), 1.0);
-        let t = Track { times: vec![0.0, 1.0], values: vec![a.i, a.j, a.k, a.w, b.i, b.j, b.k, b.w], dims: 4, interp: Interp::Linear };
+        let t = Track {
+            times: vec![0.0, 1.0],
+            values: vec![a.i, a.j, a.k, a.w, b.i, b.j, b.k, b.w],
+            dims: 4,
+            interp: Interp::Linear,
+        };
         let q = quat_of(&t.sample(0.5, true));
         assert!((q.angle() - 0.5).abs() < 1e-5);
     }

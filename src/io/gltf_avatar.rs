@@ -21,33 +21,60 @@ pub fn load_avatar(path: &Path, options: &ImportOptions) -> Result<LoadedAvatar,
 
 /// Loads a skinned avatar from the bytes of a `.glb`/`.gltf` file. `path` names the avatar
 /// (file stem), locates external buffers (relative to its folder) and ends error messages.
-pub fn load_avatar_from_bytes(bytes: &[u8], path: &Path, options: &ImportOptions) -> Result<LoadedAvatar, IoError> {
+pub fn load_avatar_from_bytes(
+    bytes: &[u8],
+    path: &Path,
+    options: &ImportOptions,
+) -> Result<LoadedAvatar, IoError> {
     let fps = check_fps(options.fps, path)?;
     let doc = GltfDoc::parse(bytes, path)?;
     let mut warnings = Vec::new();
     let rig = build_rig(&doc, &mut warnings)?;
     let BindMesh { mesh, skin } = merge_skinned_meshes(&doc, &rig, &mut warnings)?;
     let mut skeleton = rig.skeleton;
-    let scene_err = |source| IoError::Scene { source, path: path.to_path_buf() };
+    let scene_err = |source| IoError::Scene {
+        source,
+        path: path.to_path_buf(),
+    };
 
     // Units from the rest-mesh height in file units.
-    let rest = linear_blend_skin(&mesh.positions, &skin, &skeleton.skin_from_bind(&skeleton.rest_pose()));
-    let height = rest.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max) - rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    let rest = linear_blend_skin(
+        &mesh.positions,
+        &skin,
+        &skeleton.skin_from_bind(&skeleton.rest_pose()),
+    );
+    let height = rest.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max)
+        - rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
     let (units, scale) = options.units.resolve(height, Units::detect_gltf);
     if options.units == Units::Auto && units != Units::Metres {
-        warnings.push(format!("units detected as {} from a rest height of {height:.3} file units", units.label()));
+        warnings.push(format!(
+            "units detected as {} from a rest height of {height:.3} file units",
+            units.label()
+        ));
     }
     for (j, parent) in skeleton.parents.iter().enumerate() {
         if parent.is_none() {
-            skeleton.world_from_root_parent[j] = Mat4::new_scaling(scale) * skeleton.world_from_root_parent[j];
+            skeleton.world_from_root_parent[j] =
+                Mat4::new_scaling(scale) * skeleton.world_from_root_parent[j];
         }
     }
     report_zero_length_bones(&skeleton, &rig.added, height, &mut warnings);
 
     let length_tolerance = (1e-3 * height).max(1e-6);
-    let motions = super::gltf_anim::load_motions(&doc, &skeleton, &rig.joint_of_node, fps, length_tolerance, &mut warnings)?;
+    let motions = super::gltf_anim::load_motions(
+        &doc,
+        &skeleton,
+        &rig.joint_of_node,
+        fps,
+        length_tolerance,
+        &mut warnings,
+    )?;
     let avatar = Avatar::new(file_stem(path), skeleton, mesh, skin, motions).map_err(scene_err)?;
-    Ok(LoadedAvatar { avatar, units, warnings })
+    Ok(LoadedAvatar {
+        avatar,
+        units,
+        warnings,
+    })
 }
 
 /// The unified skeleton and how glTF nodes and skins map onto it.
@@ -76,16 +103,22 @@ pub(crate) struct SkinInfo {
 pub(crate) fn build_rig(doc: &GltfDoc, warnings: &mut Vec<String>) -> Result<Rig, IoError> {
     let mut skin_indices: Vec<usize> = Vec::new();
     for node in doc.doc.nodes() {
-        if let (Some(_), Some(skin)) = (node.mesh(), node.skin()) {
-            if !skin_indices.contains(&skin.index()) {
-                skin_indices.push(skin.index());
-            }
+        if let (Some(_), Some(skin)) = (node.mesh(), node.skin())
+            && !skin_indices.contains(&skin.index())
+        {
+            skin_indices.push(skin.index());
         }
     }
     if skin_indices.is_empty() {
-        return Err(IoError::NoSkin { path: doc.path.clone() });
+        return Err(IoError::NoSkin {
+            path: doc.path.clone(),
+        });
     }
-    let skins: Vec<gltf::Skin> = doc.doc.skins().filter(|s| skin_indices.contains(&s.index())).collect();
+    let skins: Vec<gltf::Skin> = doc
+        .doc
+        .skins()
+        .filter(|s| skin_indices.contains(&s.index()))
+        .collect();
 
     // Joint nodes: union of skin joints, then nodes between a joint and its nearest joint ancestor.
     let mut nodes: Vec<usize> = Vec::new();
@@ -114,7 +147,10 @@ pub(crate) fn build_rig(doc: &GltfDoc, warnings: &mut Vec<String>) -> Result<Rig
         }
     }
     if !added.is_empty() {
-        warnings.push(format!("{} non-joint nodes between joints were added to the skeleton as unweighted joints", added.len()));
+        warnings.push(format!(
+            "{} non-joint nodes between joints were added to the skeleton as unweighted joints",
+            added.len()
+        ));
     }
 
     // Topological order: each joint after its joint ancestors, otherwise keeping skin order.
@@ -124,7 +160,11 @@ pub(crate) fn build_rig(doc: &GltfDoc, warnings: &mut Vec<String>) -> Result<Rig
     let mut order: Vec<usize> = Vec::with_capacity(nodes.len());
     let mut placed = std::collections::HashSet::new();
     for &n in &nodes {
-        let mut chain: Vec<usize> = doc.ancestors(n)?.into_iter().filter(|a| is_joint.contains(a)).collect();
+        let mut chain: Vec<usize> = doc
+            .ancestors(n)?
+            .into_iter()
+            .filter(|a| is_joint.contains(a))
+            .collect();
         chain.reverse();
         chain.push(n);
         for c in chain {
@@ -133,7 +173,8 @@ pub(crate) fn build_rig(doc: &GltfDoc, warnings: &mut Vec<String>) -> Result<Rig
             }
         }
     }
-    let joint_of_node: HashMap<usize, usize> = order.iter().enumerate().map(|(j, &n)| (n, j)).collect();
+    let joint_of_node: HashMap<usize, usize> =
+        order.iter().enumerate().map(|(j, &n)| (n, j)).collect();
 
     let all_nodes: Vec<gltf::Node> = doc.doc.nodes().collect();
     let mut names = Vec::with_capacity(order.len());
@@ -144,8 +185,16 @@ pub(crate) fn build_rig(doc: &GltfDoc, warnings: &mut Vec<String>) -> Result<Rig
         let Some(node) = all_nodes.get(n) else {
             return Err(doc.invalid(format!("joint node {n} does not exist")));
         };
-        let base = node.name().filter(|s| !s.trim().is_empty()).map(str::to_string).unwrap_or_else(|| format!("node{n}"));
-        let name = if names.contains(&base) { format!("{base}_{n}") } else { base };
+        let base = node
+            .name()
+            .filter(|s| !s.trim().is_empty())
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("node{n}"));
+        let name = if names.contains(&base) {
+            format!("{base}_{n}")
+        } else {
+            base
+        };
         names.push(name);
         rest_local.push(doc.node_transform(node)?);
         let parent_node = doc.parents.get(n).copied().flatten();
@@ -168,26 +217,49 @@ pub(crate) fn build_rig(doc: &GltfDoc, warnings: &mut Vec<String>) -> Result<Rig
     let mut joint_from_bind: Vec<Option<Mat4>> = vec![None; order.len()];
     let mut infos = Vec::new();
     for skin in &skins {
-        let joints: Vec<usize> = skin.joints().filter_map(|n| joint_of_node.get(&n.index()).copied()).collect();
+        let joints: Vec<usize> = skin
+            .joints()
+            .filter_map(|n| joint_of_node.get(&n.index()).copied())
+            .collect();
         let ibms: Vec<Mat4> = match skin.inverse_bind_matrices() {
             Some(acc) => {
-                let flat = doc.read_f32(&acc, 16, &format!("skin {} inverse bind matrices", skin.index()))?;
+                let flat = doc.read_f32(
+                    &acc,
+                    16,
+                    &format!("skin {} inverse bind matrices", skin.index()),
+                )?;
                 if flat.len() / 16 < joints.len() {
                     return Err(IoError::JointCountMismatch {
-                        what: format!("skin {} inverse bind matrices (one per joint)", skin.index()),
+                        what: format!(
+                            "skin {} inverse bind matrices (one per joint)",
+                            skin.index()
+                        ),
                         expected: joints.len(),
                         found: flat.len() / 16,
                         path: doc.path.clone(),
                     });
                 }
-                flat.chunks_exact(16).take(joints.len()).map(Mat4::from_column_slice).collect()
+                flat.chunks_exact(16)
+                    .take(joints.len())
+                    .map(Mat4::from_column_slice)
+                    .collect()
             }
             None => vec![Mat4::identity(); joints.len()],
         };
-        let shared: Vec<(usize, Mat4)> = joints.iter().zip(&ibms).filter_map(|(&j, m)| joint_from_bind[j].map(|old| (j, old.try_inverse().unwrap_or_else(Mat4::identity) * m))).collect();
+        let shared: Vec<(usize, Mat4)> = joints
+            .iter()
+            .zip(&ibms)
+            .filter_map(|(&j, m)| {
+                joint_from_bind[j]
+                    .map(|old| (j, old.try_inverse().unwrap_or_else(Mat4::identity) * m))
+            })
+            .collect();
         let bind_fix = match shared.first() {
             Some(&(_, fix)) => {
-                let worst = shared.iter().map(|(_, m)| (m - fix).abs().max()).fold(0.0f32, f32::max);
+                let worst = shared
+                    .iter()
+                    .map(|(_, m)| (m - fix).abs().max())
+                    .fold(0.0f32, f32::max);
                 if worst > 1e-3 * fix.abs().max().max(1.0) {
                     warnings.push(format!("skin {} disagrees with an earlier skin on shared bind matrices; the earlier ones are used", skin.index()));
                 }
@@ -201,19 +273,38 @@ pub(crate) fn build_rig(doc: &GltfDoc, warnings: &mut Vec<String>) -> Result<Rig
                 joint_from_bind[j] = Some(m * fix_inv);
             }
         }
-        infos.push(SkinInfo { index: skin.index(), joint_map: joints, bind_fix });
+        infos.push(SkinInfo {
+            index: skin.index(),
+            joint_map: joints,
+            bind_fix,
+        });
     }
     let mut jfb = Vec::with_capacity(order.len());
     for (j, m) in joint_from_bind.into_iter().enumerate() {
         jfb.push(match m {
             Some(m) => m,
-            None => doc.world_matrix(order[j])?.try_inverse().unwrap_or_else(Mat4::identity),
+            None => doc
+                .world_matrix(order[j])?
+                .try_inverse()
+                .unwrap_or_else(Mat4::identity),
         });
     }
-    let skeleton = Skeleton::new(names, parents, rest_local, jfb, world_from_root_parent)
-        .map_err(|source| IoError::Scene { source, path: doc.path.clone() })?;
-    let added = added.iter().filter_map(|n| joint_of_node.get(n).copied()).collect();
-    Ok(Rig { skeleton, joint_of_node, skins: infos, added })
+    let skeleton = Skeleton::new(names, parents, rest_local, jfb, world_from_root_parent).map_err(
+        |source| IoError::Scene {
+            source,
+            path: doc.path.clone(),
+        },
+    )?;
+    let added = added
+        .iter()
+        .filter_map(|n| joint_of_node.get(n).copied())
+        .collect();
+    Ok(Rig {
+        skeleton,
+        joint_of_node,
+        skins: infos,
+        added,
+    })
 }
 
 /// The merged bind-space mesh of all skinned mesh nodes with its skin weights.
@@ -225,20 +316,36 @@ pub(crate) struct BindMesh {
 }
 
 /// Triangles of a primitive given its vertex count and mode; `None` for non-triangle modes.
-pub(crate) fn primitive_triangles(doc: &GltfDoc, prim: &gltf::Primitive, vertices: usize, what: &str) -> Result<Option<Vec<[u32; 3]>>, IoError> {
+pub(crate) fn primitive_triangles(
+    doc: &GltfDoc,
+    prim: &gltf::Primitive,
+    vertices: usize,
+    what: &str,
+) -> Result<Option<Vec<[u32; 3]>>, IoError> {
     let indices: Vec<u32> = match prim.indices() {
         Some(acc) => doc.read_u32(&acc, 1, &format!("{what} indices"))?,
         None => (0..vertices as u32).collect(),
     };
     if let Some(&bad) = indices.iter().find(|&&i| i as usize >= vertices) {
-        return Err(doc.invalid(format!("{what}: index {bad} out of range ({vertices} vertices)")));
+        return Err(doc.invalid(format!(
+            "{what}: index {bad} out of range ({vertices} vertices)"
+        )));
     }
     let tris: Vec<[u32; 3]> = match prim.mode() {
-        gltf::mesh::Mode::Triangles => indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        gltf::mesh::Mode::Triangles => indices
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect(),
         gltf::mesh::Mode::TriangleStrip => indices
             .windows(3)
             .enumerate()
-            .map(|(k, w)| if k % 2 == 0 { [w[0], w[1], w[2]] } else { [w[1], w[0], w[2]] })
+            .map(|(k, w)| {
+                if k % 2 == 0 {
+                    [w[0], w[1], w[2]]
+                } else {
+                    [w[1], w[0], w[2]]
+                }
+            })
             .collect(),
         gltf::mesh::Mode::TriangleFan => match indices.first() {
             Some(&c) => indices[1..].windows(2).map(|w| [c, w[0], w[1]]).collect(),
@@ -250,7 +357,11 @@ pub(crate) fn primitive_triangles(doc: &GltfDoc, prim: &gltf::Primitive, vertice
 }
 
 /// Merges all triangle primitives of all skinned mesh nodes into one bind-space mesh.
-pub(crate) fn merge_skinned_meshes(doc: &GltfDoc, rig: &Rig, warnings: &mut Vec<String>) -> Result<BindMesh, IoError> {
+pub(crate) fn merge_skinned_meshes(
+    doc: &GltfDoc,
+    rig: &Rig,
+    warnings: &mut Vec<String>,
+) -> Result<BindMesh, IoError> {
     let mut positions: Vec<Vec3> = Vec::new();
     let mut faces: Vec<[u32; 3]> = Vec::new();
     let mut uvs: Vec<[f32; 2]> = Vec::new();
@@ -280,7 +391,11 @@ pub(crate) fn merge_skinned_meshes(doc: &GltfDoc, rig: &Rig, warnings: &mut Vec<
             if base + n > u32::MAX as usize {
                 return Err(doc.invalid("too many vertices"));
             }
-            positions.extend(pos.chunks_exact(3).map(|c| info.bind_fix.transform_point(&nalgebra::Point3::new(c[0], c[1], c[2])).coords));
+            positions.extend(pos.chunks_exact(3).map(|c| {
+                info.bind_fix
+                    .transform_point(&nalgebra::Point3::new(c[0], c[1], c[2]))
+                    .coords
+            }));
             faces.extend(tris.iter().map(|t| t.map(|i| i + base as u32)));
             match prim.get(&gltf::Semantic::TexCoords(0)) {
                 Some(acc) => {
@@ -294,16 +409,27 @@ pub(crate) fn merge_skinned_meshes(doc: &GltfDoc, rig: &Rig, warnings: &mut Vec<
             }
             let mut lists: Vec<Vec<(u16, f32)>> = vec![Vec::new(); n];
             for set in 0..2u32 {
-                let (Some(ja), Some(wa)) = (prim.get(&gltf::Semantic::Joints(set)), prim.get(&gltf::Semantic::Weights(set))) else {
+                let (Some(ja), Some(wa)) = (
+                    prim.get(&gltf::Semantic::Joints(set)),
+                    prim.get(&gltf::Semantic::Weights(set)),
+                ) else {
                     if set == 0 {
-                        return Err(doc.invalid(format!("{what} of a skinned mesh has no JOINTS_0/WEIGHTS_0")));
+                        return Err(doc.invalid(format!(
+                            "{what} of a skinned mesh has no JOINTS_0/WEIGHTS_0"
+                        )));
                     }
                     continue;
                 };
                 let joints = doc.read_u32(&ja, 4, &format!("{what} JOINTS_{set}"))?;
                 let weights = doc.read_f32(&wa, 4, &format!("{what} WEIGHTS_{set}"))?;
                 if joints.len() / 4 != n || weights.len() / 4 != n {
-                    return Err(count_mismatch(doc, &what, &format!("JOINTS_{set}/WEIGHTS_{set}"), n, (joints.len() / 4).min(weights.len() / 4)));
+                    return Err(count_mismatch(
+                        doc,
+                        &what,
+                        &format!("JOINTS_{set}/WEIGHTS_{set}"),
+                        n,
+                        (joints.len() / 4).min(weights.len() / 4),
+                    ));
                 }
                 for (v, list) in lists.iter_mut().enumerate() {
                     for k in 0..4 {
@@ -313,7 +439,10 @@ pub(crate) fn merge_skinned_meshes(doc: &GltfDoc, rig: &Rig, warnings: &mut Vec<
                         }
                         let Some(&sj) = info.joint_map.get(j) else {
                             return Err(IoError::JointCountMismatch {
-                                what: format!("{what} JOINTS_{set} refers to joint {j} of skin {}, joints in the skin", info.index),
+                                what: format!(
+                                    "{what} JOINTS_{set} refers to joint {j} of skin {}, joints in the skin",
+                                    info.index
+                                ),
                                 expected: info.joint_map.len(),
                                 found: j + 1,
                                 path: doc.path.clone(),
@@ -327,46 +456,80 @@ pub(crate) fn merge_skinned_meshes(doc: &GltfDoc, rig: &Rig, warnings: &mut Vec<
         }
     }
     if skipped > 0 {
-        warnings.push(format!("{skipped} non-triangle primitives (points/lines) ignored"));
+        warnings.push(format!(
+            "{skipped} non-triangle primitives (points/lines) ignored"
+        ));
     }
     if morphs {
         warnings.push("morph targets present but ignored".into());
     }
     if faces.is_empty() {
-        return Err(IoError::NoMesh { path: doc.path.clone() });
+        return Err(IoError::NoMesh {
+            path: doc.path.clone(),
+        });
     }
     let (skin, fallbacks) = SkinWeights::from_influences(influences, 0);
     if fallbacks > 0 {
-        warnings.push(format!("{fallbacks} vertices had no usable skin weight and were bound to the root joint"));
+        warnings.push(format!(
+            "{fallbacks} vertices had no usable skin weight and were bound to the root joint"
+        ));
     }
     if !all_have_uvs && !uvs.is_empty() {
         warnings.push("some primitives have no TEXCOORD_0; UVs dropped".into());
     }
     let uvs = (all_have_uvs && uvs.len() == positions.len()).then_some(uvs);
-    let mesh = TriMesh { positions, faces, uvs };
-    mesh.validate().map_err(|e| doc.invalid(format!("bind mesh: {e}")))?;
+    let mesh = TriMesh {
+        positions,
+        faces,
+        uvs,
+    };
+    mesh.validate()
+        .map_err(|e| doc.invalid(format!("bind mesh: {e}")))?;
     Ok(BindMesh { mesh, skin })
 }
 
 fn count_mismatch(doc: &GltfDoc, what: &str, attr: &str, expected: usize, found: usize) -> IoError {
-    IoError::JointCountMismatch { what: format!("{what} {attr} (one per vertex)"), expected, found, path: doc.path.clone() }
+    IoError::JointCountMismatch {
+        what: format!("{what} {attr} (one per vertex)"),
+        expected,
+        found,
+        path: doc.path.clone(),
+    }
 }
 
 /// Warns about non-root joints that sit exactly on their parent (zero-length bones).
-pub(crate) fn report_zero_length_bones(skeleton: &Skeleton, skip: &[usize], size: f32, warnings: &mut Vec<String>) {
+pub(crate) fn report_zero_length_bones(
+    skeleton: &Skeleton,
+    skip: &[usize],
+    size: f32,
+    warnings: &mut Vec<String>,
+) {
     let tol = (1e-6 * size).max(1e-9);
     let zero: Vec<&str> = (0..skeleton.len())
-        .filter(|&j| skeleton.parents[j].is_some() && !skip.contains(&j) && skeleton.rest_local[j].translation.norm() <= tol)
+        .filter(|&j| {
+            skeleton.parents[j].is_some()
+                && !skip.contains(&j)
+                && skeleton.rest_local[j].translation.norm() <= tol
+        })
         .map(|j| skeleton.names[j].as_str())
         .collect();
     if !zero.is_empty() {
-        warnings.push(format!("{} zero-length bones (joint on its parent): {}", zero.len(), short_list(&zero, 8)));
+        warnings.push(format!(
+            "{} zero-length bones (joint on its parent): {}",
+            zero.len(),
+            short_list(&zero, 8)
+        ));
     }
 }
 
 /// `a, b, c, ... (+n more)`.
 pub(crate) fn short_list(items: &[&str], max: usize) -> String {
-    let mut s = items.iter().take(max).copied().collect::<Vec<_>>().join(", ");
+    let mut s = items
+        .iter()
+        .take(max)
+        .copied()
+        .collect::<Vec<_>>()
+        .join(", ");
     if items.len() > max {
         s.push_str(&format!(", ... (+{} more)", items.len() - max));
     }

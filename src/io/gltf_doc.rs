@@ -9,14 +9,11 @@
 use std::path::{Path, PathBuf};
 
 use base64::Engine as _;
-use gltf::accessor::{DataType, Dimensions};
 
 use super::IoError;
 use crate::geometry::{Mat4, Quat, Vec3};
 use crate::scene::JointTransform;
 
-/// Largest number of values an accessor without a buffer view may expand to.
-const MAX_IMPLICIT_VALUES: usize = 1 << 24;
 /// GLB chunk type of the JSON chunk ("JSON").
 const CHUNK_JSON: u32 = 0x4E4F_534A;
 /// GLB chunk type of the binary chunk ("BIN\0").
@@ -43,16 +40,28 @@ fn le_u32(bytes: &[u8], at: usize) -> Option<u32> {
 
 /// Splits a GLB container into its JSON chunk and optional binary chunk.
 fn split_glb<'a>(bytes: &'a [u8], path: &Path) -> Result<(&'a [u8], Option<&'a [u8]>), IoError> {
-    let trunc = |what: String| IoError::Truncated { what, path: path.to_path_buf() };
+    let trunc = |what: String| IoError::Truncated {
+        what,
+        path: path.to_path_buf(),
+    };
     let (Some(version), Some(length)) = (le_u32(bytes, 4), le_u32(bytes, 8)) else {
-        return Err(trunc(format!("GLB header needs 12 bytes, file has {}", bytes.len())));
+        return Err(trunc(format!(
+            "GLB header needs 12 bytes, file has {}",
+            bytes.len()
+        )));
     };
     if version != 2 {
-        return Err(IoError::NotGltf { reason: format!("GLB version {version} (only 2 is supported)"), path: path.to_path_buf() });
+        return Err(IoError::NotGltf {
+            reason: format!("GLB version {version} (only 2 is supported)"),
+            path: path.to_path_buf(),
+        });
     }
     let length = length as usize;
     if length > bytes.len() {
-        return Err(trunc(format!("GLB header declares {length} bytes, file has {}", bytes.len())));
+        return Err(trunc(format!(
+            "GLB header declares {length} bytes, file has {}",
+            bytes.len()
+        )));
     }
     let body = &bytes[..length];
     let mut at = 12usize;
@@ -62,8 +71,13 @@ fn split_glb<'a>(bytes: &'a [u8], path: &Path) -> Result<(&'a [u8], Option<&'a [
             return Err(trunc(format!("GLB chunk header at byte {at}")));
         };
         let start = at + 8;
-        let Some(data) = start.checked_add(chunk_len as usize).and_then(|end| body.get(start..end)) else {
-            return Err(trunc(format!("GLB chunk at byte {at} declares {chunk_len} bytes")));
+        let Some(data) = start
+            .checked_add(chunk_len as usize)
+            .and_then(|end| body.get(start..end))
+        else {
+            return Err(trunc(format!(
+                "GLB chunk at byte {at} declares {chunk_len} bytes"
+            )));
         };
         match kind {
             CHUNK_JSON if json.is_none() => json = Some(data),
@@ -73,7 +87,10 @@ fn split_glb<'a>(bytes: &'a [u8], path: &Path) -> Result<(&'a [u8], Option<&'a [
         at = start + data.len().div_ceil(4) * 4;
     }
     let Some(json) = json else {
-        return Err(IoError::NotGltf { reason: "GLB has no JSON chunk".into(), path: path.to_path_buf() });
+        return Err(IoError::NotGltf {
+            reason: "GLB has no JSON chunk".into(),
+            path: path.to_path_buf(),
+        });
     };
     Ok((json, bin))
 }
@@ -84,12 +101,15 @@ fn percent_decode(uri: &str) -> String {
     let mut out = Vec::with_capacity(bytes.len());
     let mut i = 0;
     while i < bytes.len() {
-        if bytes[i] == b'%' {
-            if let Some(v) = bytes.get(i + 1..i + 3).and_then(|h| std::str::from_utf8(h).ok()).and_then(|h| u8::from_str_radix(h, 16).ok()) {
-                out.push(v);
-                i += 3;
-                continue;
-            }
+        if bytes[i] == b'%'
+            && let Some(v) = bytes
+                .get(i + 1..i + 3)
+                .and_then(|h| std::str::from_utf8(h).ok())
+                .and_then(|h| u8::from_str_radix(h, 16).ok())
+        {
+            out.push(v);
+            i += 3;
+            continue;
         }
         out.push(bytes[i]);
         i += 1;
@@ -104,26 +124,51 @@ impl GltfDoc {
         let (json, bin) = if bytes.starts_with(b"glTF") {
             split_glb(bytes, path)?
         } else {
-            let body = bytes.strip_prefix(b"\xEF\xBB\xBF".as_slice()).unwrap_or(bytes);
+            let body = bytes
+                .strip_prefix(b"\xEF\xBB\xBF".as_slice())
+                .unwrap_or(bytes);
             match body.iter().find(|b| !b.is_ascii_whitespace()) {
                 Some(b'{') => (body, None),
-                None => return Err(IoError::Truncated { what: "empty file".into(), path: p() }),
+                None => {
+                    return Err(IoError::Truncated {
+                        what: "empty file".into(),
+                        path: p(),
+                    });
+                }
                 Some(_) => {
-                    return Err(IoError::NotGltf { reason: "neither GLB magic nor a JSON object".into(), path: p() });
+                    return Err(IoError::NotGltf {
+                        reason: "neither GLB magic nor a JSON object".into(),
+                        path: p(),
+                    });
                 }
             }
         };
         // The crate's parser is third-party code fed untrusted bytes: contain any panic.
-        let parsed = std::panic::catch_unwind(|| gltf::Gltf::from_slice(json))
-            .map_err(|_| IoError::InvalidGltf { reason: "the glTF parser failed on this document".into(), path: p() })?;
+        let parsed = std::panic::catch_unwind(|| gltf::Gltf::from_slice(json)).map_err(|_| {
+            IoError::InvalidGltf {
+                reason: "the glTF parser failed on this document".into(),
+                path: p(),
+            }
+        })?;
         let gltf = parsed.map_err(|e| match e {
             gltf::Error::Deserialize(ref d) if d.classify() == serde_json::error::Category::Eof => {
-                IoError::Truncated { what: format!("JSON ends early ({d})"), path: p() }
+                IoError::Truncated {
+                    what: format!("JSON ends early ({d})"),
+                    path: p(),
+                }
             }
-            gltf::Error::Deserialize(ref d) if d.classify() == serde_json::error::Category::Syntax => {
-                IoError::NotGltf { reason: format!("malformed JSON ({d})"), path: p() }
+            gltf::Error::Deserialize(ref d)
+                if d.classify() == serde_json::error::Category::Syntax =>
+            {
+                IoError::NotGltf {
+                    reason: format!("malformed JSON ({d})"),
+                    path: p(),
+                }
             }
-            other => IoError::InvalidGltf { reason: other.to_string(), path: p() },
+            other => IoError::InvalidGltf {
+                reason: other.to_string(),
+                path: p(),
+            },
         })?;
         let doc = gltf.document;
         let base_dir = path.parent().unwrap_or(Path::new("."));
@@ -134,16 +179,26 @@ impl GltfDoc {
                     Some(b) => b.to_vec(),
                     None => {
                         return Err(IoError::InvalidGltf {
-                            reason: format!("buffer {} refers to a GLB binary chunk that does not exist", buffer.index()),
+                            reason: format!(
+                                "buffer {} refers to a GLB binary chunk that does not exist",
+                                buffer.index()
+                            ),
                             path: p(),
                         });
                     }
                 },
-                gltf::buffer::Source::Uri(uri) => Self::load_uri(uri, base_dir, buffer.index(), path)?,
+                gltf::buffer::Source::Uri(uri) => {
+                    Self::load_uri(uri, base_dir, buffer.index(), path)?
+                }
             };
             if data.len() < buffer.length() {
                 return Err(IoError::Truncated {
-                    what: format!("buffer {} has {} bytes, {} declared", buffer.index(), data.len(), buffer.length()),
+                    what: format!(
+                        "buffer {} has {} bytes, {} declared",
+                        buffer.index(),
+                        data.len(),
+                        buffer.length()
+                    ),
                     path: p(),
                 });
             }
@@ -154,16 +209,25 @@ impl GltfDoc {
         for node in doc.nodes() {
             for child in node.children() {
                 let c = child.index();
-                if c == node.index() || parents.get(c).copied().flatten().is_some() {
-                    return Err(IoError::InvalidGltf {
-                        reason: format!("node {c} has more than one parent or is its own child"),
-                        path: p(),
-                    });
+                match parents.get_mut(c) {
+                    Some(slot @ None) if c != node.index() => *slot = Some(node.index()),
+                    _ => {
+                        return Err(IoError::InvalidGltf {
+                            reason: format!(
+                                "node {c} has more than one parent or is its own child"
+                            ),
+                            path: p(),
+                        });
+                    }
                 }
-                parents[c] = Some(node.index());
             }
         }
-        let me = Self { doc, buffers, parents, path: path.to_path_buf() };
+        let me = Self {
+            doc,
+            buffers,
+            parents,
+            path: path.to_path_buf(),
+        };
         for n in 0..node_count {
             me.ancestors(n)?;
         }
@@ -173,15 +237,23 @@ impl GltfDoc {
     fn load_uri(uri: &str, base_dir: &Path, index: usize, path: &Path) -> Result<Vec<u8>, IoError> {
         if let Some(rest) = uri.strip_prefix("data:") {
             let Some((_, payload)) = rest.split_once(";base64,") else {
-                return Err(IoError::Unsupported { what: format!("buffer {index}: data URI that is not base64"), path: path.to_path_buf() });
+                return Err(IoError::Unsupported {
+                    what: format!("buffer {index}: data URI that is not base64"),
+                    path: path.to_path_buf(),
+                });
             };
-            return base64::engine::general_purpose::STANDARD.decode(payload.trim()).map_err(|e| IoError::InvalidGltf {
-                reason: format!("buffer {index}: bad base64 data URI ({e})"),
-                path: path.to_path_buf(),
-            });
+            return base64::engine::general_purpose::STANDARD
+                .decode(payload.trim())
+                .map_err(|e| IoError::InvalidGltf {
+                    reason: format!("buffer {index}: bad base64 data URI ({e})"),
+                    path: path.to_path_buf(),
+                });
         }
         if uri.contains("://") {
-            return Err(IoError::Unsupported { what: format!("buffer {index}: remote URI '{uri}'"), path: path.to_path_buf() });
+            return Err(IoError::Unsupported {
+                what: format!("buffer {index}: remote URI '{uri}'"),
+                path: path.to_path_buf(),
+            });
         }
         let file = base_dir.join(percent_decode(uri));
         std::fs::read(&file).map_err(|source| IoError::Read { source, path: file })
@@ -189,7 +261,10 @@ impl GltfDoc {
 
     /// An `InvalidGltf` error for this file.
     pub fn invalid(&self, reason: impl Into<String>) -> IoError {
-        IoError::InvalidGltf { reason: reason.into(), path: self.path.clone() }
+        IoError::InvalidGltf {
+            reason: reason.into(),
+            path: self.path.clone(),
+        }
     }
 
     /// Ancestors of node `n`, nearest first. Errors on a cycle.
@@ -198,7 +273,9 @@ impl GltfDoc {
         let mut cur = self.parents.get(n).copied().flatten();
         while let Some(p) = cur {
             if out.len() > self.parents.len() {
-                return Err(self.invalid(format!("the node hierarchy has a cycle through node {n}")));
+                return Err(
+                    self.invalid(format!("the node hierarchy has a cycle through node {n}"))
+                );
             }
             out.push(p);
             cur = self.parents.get(p).copied().flatten();
@@ -210,32 +287,57 @@ impl GltfDoc {
     pub fn node_transform(&self, node: &gltf::Node) -> Result<JointTransform, IoError> {
         let what = format!("node {} transform", node.index());
         match node.transform() {
-            gltf::scene::Transform::Decomposed { translation, rotation, scale } => {
+            gltf::scene::Transform::Decomposed {
+                translation,
+                rotation,
+                scale,
+            } => {
                 let translation = Vec3::from(translation);
                 let scale = Vec3::from(scale);
-                if !(translation.iter().chain(scale.iter()).all(|v| v.is_finite())) {
-                    return Err(IoError::NonFinite { what, path: self.path.clone() });
+                if !(translation
+                    .iter()
+                    .chain(scale.iter())
+                    .all(|v| v.is_finite()))
+                {
+                    return Err(IoError::NonFinite {
+                        what,
+                        path: self.path.clone(),
+                    });
                 }
                 let rotation = self.quat(rotation, &what)?;
-                Ok(JointTransform { translation, rotation, scale })
+                Ok(JointTransform {
+                    translation,
+                    rotation,
+                    scale,
+                })
             }
             gltf::scene::Transform::Matrix { matrix } => {
                 let m = Mat4::from_fn(|r, c| matrix[c][r]);
-                decompose(&m).ok_or(IoError::NonFinite { what, path: self.path.clone() })
+                decompose(&m).ok_or(IoError::NonFinite {
+                    what,
+                    path: self.path.clone(),
+                })
             }
         }
     }
 
     /// The local matrix of node `n` at rest.
     pub fn local_matrix(&self, n: usize) -> Result<Mat4, IoError> {
-        let node = self.doc.nodes().nth(n).ok_or_else(|| self.invalid(format!("node {n} does not exist")))?;
+        let node = self
+            .doc
+            .nodes()
+            .nth(n)
+            .ok_or_else(|| self.invalid(format!("node {n} does not exist")))?;
         match node.transform() {
             gltf::scene::Transform::Matrix { matrix } => {
                 let m = Mat4::from_fn(|r, c| matrix[c][r]);
                 if m.iter().all(|v| v.is_finite()) {
                     Ok(m)
                 } else {
-                    Err(IoError::NonFinite { what: format!("node {n} matrix"), path: self.path.clone() })
+                    Err(IoError::NonFinite {
+                        what: format!("node {n} matrix"),
+                        path: self.path.clone(),
+                    })
                 }
             }
             _ => Ok(self.node_transform(&node)?.to_matrix()),
@@ -254,169 +356,18 @@ impl GltfDoc {
     /// A unit quaternion from file components `[x, y, z, w]`.
     pub fn quat(&self, xyzw: [f32; 4], what: &str) -> Result<Quat, IoError> {
         if !xyzw.iter().all(|c| c.is_finite()) {
-            return Err(IoError::NonFinite { what: what.to_string(), path: self.path.clone() });
+            return Err(IoError::NonFinite {
+                what: what.to_string(),
+                path: self.path.clone(),
+            });
         }
-        crate::geometry::rotation::quat_from_xyzw(xyzw, FILE_ROTATION_TOLERANCE).ok_or_else(|| IoError::NonUnitRotation {
-            what: what.to_string(),
-            norm: xyzw.iter().map(|c| c * c).sum::<f32>().sqrt(),
-            path: self.path.clone(),
+        crate::geometry::rotation::quat_from_xyzw(xyzw, FILE_ROTATION_TOLERANCE).ok_or_else(|| {
+            IoError::NonUnitRotation {
+                what: what.to_string(),
+                norm: xyzw.iter().map(|c| c * c).sum::<f32>().sqrt(),
+                path: self.path.clone(),
+            }
         })
-    }
-
-    /// The bytes of a buffer view, bounds-checked.
-    fn view_bytes(&self, view: &gltf::buffer::View, what: &str) -> Result<&[u8], IoError> {
-        let buffer = self.buffers.get(view.buffer().index()).ok_or_else(|| self.invalid(format!("{what}: missing buffer")))?;
-        view.offset()
-            .checked_add(view.length())
-            .and_then(|end| buffer.get(view.offset()..end))
-            .ok_or_else(|| {
-                self.invalid(format!(
-                    "{what}: buffer view {} (bytes {}..+{}) is out of range of buffer {} ({} bytes)",
-                    view.index(),
-                    view.offset(),
-                    view.length(),
-                    view.buffer().index(),
-                    buffer.len()
-                ))
-            })
-    }
-
-    /// Checked sub-slice holding `count` elements of `elem` bytes every `stride` bytes from `offset`.
-    fn strided<'b>(&self, data: &'b [u8], offset: usize, count: usize, elem: usize, stride: usize, what: &str) -> Result<&'b [u8], IoError> {
-        if count == 0 {
-            return Ok(&[]);
-        }
-        let end = (count - 1)
-            .checked_mul(stride)
-            .and_then(|v| v.checked_add(elem))
-            .and_then(|v| v.checked_add(offset));
-        end.and_then(|end| data.get(offset..end))
-            .ok_or_else(|| self.invalid(format!("{what}: {count} elements of {elem} bytes from byte {offset} run past the buffer view ({} bytes)", data.len())))
-    }
-
-    /// Reads accessor `acc` as `f32` values (normalised integers scaled to [0, 1] / [-1, 1]),
-    /// flattened, checking that it has `dims` components. Non-finite floats are errors.
-    pub fn read_f32(&self, acc: &gltf::Accessor, dims: usize, what: &str) -> Result<Vec<f32>, IoError> {
-        let what = format!("{what} (accessor {})", acc.index());
-        let found = dims_of(acc.dimensions());
-        if found != dims {
-            return Err(self.invalid(format!("{what}: {found} components per element, expected {dims}")));
-        }
-        let ty = acc.data_type();
-        let norm = acc.normalized();
-        let decode = move |b: &[u8]| -> f32 {
-            match ty {
-                DataType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-                DataType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
-                DataType::U16 if norm => u16::from_le_bytes([b[0], b[1]]) as f32 / 65535.0,
-                DataType::U16 => u16::from_le_bytes([b[0], b[1]]) as f32,
-                DataType::I16 if norm => (i16::from_le_bytes([b[0], b[1]]) as f32 / 32767.0).max(-1.0),
-                DataType::I16 => i16::from_le_bytes([b[0], b[1]]) as f32,
-                DataType::U8 if norm => b[0] as f32 / 255.0,
-                DataType::U8 => b[0] as f32,
-                DataType::I8 if norm => (b[0] as i8 as f32 / 127.0).max(-1.0),
-                DataType::I8 => b[0] as i8 as f32,
-            }
-        };
-        let values = self.read_generic(acc, dims, &what, decode)?;
-        if values.iter().any(|v| !v.is_finite()) {
-            return Err(IoError::NonFinite { what, path: self.path.clone() });
-        }
-        Ok(values)
-    }
-
-    /// Reads accessor `acc` as unsigned integers (indices, joint indices), checking `dims`.
-    pub fn read_u32(&self, acc: &gltf::Accessor, dims: usize, what: &str) -> Result<Vec<u32>, IoError> {
-        let what = format!("{what} (accessor {})", acc.index());
-        let found = dims_of(acc.dimensions());
-        if found != dims {
-            return Err(self.invalid(format!("{what}: {found} components per element, expected {dims}")));
-        }
-        let ty = acc.data_type();
-        if !matches!(ty, DataType::U8 | DataType::U16 | DataType::U32) || acc.normalized() {
-            return Err(self.invalid(format!("{what}: component type {ty:?} is not an unsigned integer")));
-        }
-        self.read_generic(acc, dims, &what, move |b: &[u8]| match ty {
-            DataType::U8 => b[0] as u32,
-            DataType::U16 => u16::from_le_bytes([b[0], b[1]]) as u32,
-            _ => u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-        })
-    }
-
-    fn read_generic<T: Copy + Default>(&self, acc: &gltf::Accessor, dims: usize, what: &str, decode: impl Fn(&[u8]) -> T) -> Result<Vec<T>, IoError> {
-        let comp = acc.data_type().size();
-        let elem = comp * dims;
-        let count = acc.count();
-        let mut out: Vec<T> = match acc.view() {
-            Some(view) => {
-                let data = self.view_bytes(&view, what)?;
-                let stride = view.stride().unwrap_or(elem);
-                if stride < elem {
-                    return Err(self.invalid(format!("{what}: byte stride {stride} is smaller than an element ({elem} bytes)")));
-                }
-                let bytes = self.strided(data, acc.offset(), count, elem, stride, what)?;
-                let mut v = Vec::with_capacity(count * dims);
-                for i in 0..count {
-                    for k in 0..dims {
-                        let at = i * stride + k * comp;
-                        let Some(b) = bytes.get(at..at + comp) else {
-                            return Err(self.invalid(format!("{what}: element {i} out of range")));
-                        };
-                        v.push(decode(b));
-                    }
-                }
-                v
-            }
-            None => {
-                if count.saturating_mul(dims) > MAX_IMPLICIT_VALUES {
-                    return Err(self.invalid(format!("{what}: {count} elements without a buffer view")));
-                }
-                vec![T::default(); count * dims]
-            }
-        };
-        if let Some(sparse) = acc.sparse() {
-            let n = sparse.count();
-            let idx_view = sparse.indices().view();
-            let idx_size = match sparse.indices().index_type() {
-                gltf::accessor::sparse::IndexType::U8 => 1,
-                gltf::accessor::sparse::IndexType::U16 => 2,
-                gltf::accessor::sparse::IndexType::U32 => 4,
-            };
-            let idx_bytes = self.strided(self.view_bytes(&idx_view, what)?, sparse.indices().offset(), n, idx_size, idx_size, what)?;
-            let val_bytes = self.strided(self.view_bytes(&sparse.values().view(), what)?, sparse.values().offset(), n, elem, elem, what)?;
-            for s in 0..n {
-                let ib = idx_bytes.get(s * idx_size..(s + 1) * idx_size).unwrap_or(&[]);
-                let index = match ib.len() {
-                    1 => ib[0] as usize,
-                    2 => u16::from_le_bytes([ib[0], ib[1]]) as usize,
-                    4 => u32::from_le_bytes([ib[0], ib[1], ib[2], ib[3]]) as usize,
-                    _ => return Err(self.invalid(format!("{what}: sparse index {s} out of range"))),
-                };
-                if index >= count {
-                    return Err(self.invalid(format!("{what}: sparse index {index} >= count {count}")));
-                }
-                for k in 0..dims {
-                    let at = s * elem + k * comp;
-                    let (Some(b), Some(slot)) = (val_bytes.get(at..at + comp), out.get_mut(index * dims + k)) else {
-                        return Err(self.invalid(format!("{what}: sparse value {s} out of range")));
-                    };
-                    *slot = decode(b);
-                }
-            }
-        }
-        Ok(out)
-    }
-}
-
-/// Components per element of an accessor type.
-fn dims_of(d: Dimensions) -> usize {
-    match d {
-        Dimensions::Scalar => 1,
-        Dimensions::Vec2 => 2,
-        Dimensions::Vec3 => 3,
-        Dimensions::Vec4 | Dimensions::Mat2 => 4,
-        Dimensions::Mat3 => 9,
-        Dimensions::Mat4 => 16,
     }
 }
 
@@ -429,11 +380,25 @@ pub(crate) fn decompose(m: &Mat4) -> Option<JointTransform> {
     let translation = m.fixed_view::<3, 1>(0, 3).into_owned();
     let r = m.fixed_view::<3, 3>(0, 0).into_owned();
     let sign = if r.determinant() < 0.0 { -1.0 } else { 1.0 };
-    let scale = Vec3::new(r.column(0).norm(), r.column(1).norm(), sign * r.column(2).norm());
+    let scale = Vec3::new(
+        r.column(0).norm(),
+        r.column(1).norm(),
+        sign * r.column(2).norm(),
+    );
     let rotation = crate::scene::skeleton::rotation_of(&Mat4::from_fn(|i, j| {
-        if i < 3 && j < 3 { r[(i, j)] * if j == 2 { sign } else { 1.0 } } else if i == j { 1.0 } else { 0.0 }
+        if i < 3 && j < 3 {
+            r[(i, j)] * if j == 2 { sign } else { 1.0 }
+        } else if i == j {
+            1.0
+        } else {
+            0.0
+        }
     }));
-    Some(JointTransform { translation, rotation, scale })
+    Some(JointTransform {
+        translation,
+        rotation,
+        scale,
+    })
 }
 
 #[cfg(test)]
@@ -450,22 +415,42 @@ mod tests {
         let back = decompose(&t.to_matrix()).unwrap();
         assert!((back.to_matrix() - t.to_matrix()).norm() < 1e-5);
         assert!(decompose(&Mat4::from_element(f32::NAN)).is_none());
-        let mirrored = decompose(&Mat4::new_nonuniform_scaling(&Vec3::new(1.0, 1.0, -1.0))).unwrap();
-        assert!((mirrored.to_matrix() - Mat4::new_nonuniform_scaling(&Vec3::new(1.0, 1.0, -1.0))).norm() < 1e-6);
+        let mirrored =
+            decompose(&Mat4::new_nonuniform_scaling(&Vec3::new(1.0, 1.0, -1.0))).unwrap();
+        assert!(
+            (mirrored.to_matrix() - Mat4::new_nonuniform_scaling(&Vec3::new(1.0, 1.0, -1.0)))
+                .norm()
+                < 1e-6
+        );
     }
 
     #[test]
     fn glb_container_errors() {
         let p = Path::new("x.glb");
-        assert!(matches!(split_glb(b"glTF\x02\0\0\0", p), Err(IoError::Truncated { .. })));
-        assert!(matches!(split_glb(b"glTF\x01\0\0\0\x0c\0\0\0", p), Err(IoError::NotGltf { .. })));
-        assert!(matches!(split_glb(b"glTF\x02\0\0\0\xff\0\0\0", p), Err(IoError::Truncated { .. })));
+        assert!(matches!(
+            split_glb(b"glTF\x02\0\0\0", p),
+            Err(IoError::Truncated { .. })
+        ));
+        assert!(matches!(
+            split_glb(b"glTF\x01\0\0\0\x0c\0\0\0", p),
+            Err(IoError::NotGltf { .. })
+        ));
+        assert!(matches!(
+            split_glb(b"glTF\x02\0\0\0\xff\0\0\0", p),
+            Err(IoError::Truncated { .. })
+        ));
         let mut glb = b"glTF\x02\0\0\0\x18\0\0\0\x04\0\0\0JSON{}  ".to_vec();
         assert_eq!(split_glb(&glb, p).unwrap().0, b"{}  ");
         glb[12] = 0x40;
         assert!(matches!(split_glb(&glb, p), Err(IoError::Truncated { .. })));
-        assert!(matches!(GltfDoc::parse(b"hello", p), Err(IoError::NotGltf { .. })));
-        assert!(matches!(GltfDoc::parse(b"{\"asset\":", p), Err(IoError::Truncated { .. })));
+        assert!(matches!(
+            GltfDoc::parse(b"hello", p),
+            Err(IoError::NotGltf { .. })
+        ));
+        assert!(matches!(
+            GltfDoc::parse(b"{\"asset\":", p),
+            Err(IoError::Truncated { .. })
+        ));
     }
 
     #[test]

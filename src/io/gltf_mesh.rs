@@ -17,10 +17,15 @@ pub fn load_gltf_mesh(path: &Path, options: &ImportOptions) -> Result<LoadedMesh
 /// Loads a glTF/GLB mesh from bytes; `path` names it, locates external buffers and ends error
 /// messages. UVs (`TEXCOORD_0`) are kept when every primitive has them. A skinned node is
 /// placed by its node transform like any other (its skin is ignored, with a warning).
-pub fn load_gltf_mesh_from_bytes(bytes: &[u8], path: &Path, options: &ImportOptions) -> Result<LoadedMesh, IoError> {
+pub fn load_gltf_mesh_from_bytes(
+    bytes: &[u8],
+    path: &Path,
+    options: &ImportOptions,
+) -> Result<LoadedMesh, IoError> {
     let doc = GltfDoc::parse(bytes, path)?;
     let mut warnings = Vec::new();
-    let scene_nodes: Vec<usize> = match doc.doc.default_scene().or_else(|| doc.doc.scenes().next()) {
+    let scene_nodes: Vec<usize> = match doc.doc.default_scene().or_else(|| doc.doc.scenes().next())
+    {
         Some(scene) => {
             let mut out = Vec::new();
             let mut stack: Vec<gltf::Node> = scene.nodes().collect();
@@ -67,7 +72,11 @@ pub fn load_gltf_mesh_from_bytes(bytes: &[u8], path: &Path, options: &ImportOpti
             if base + count > u32::MAX as usize {
                 return Err(doc.invalid("too many vertices"));
             }
-            positions.extend(pos.chunks_exact(3).map(|c| world.transform_point(&nalgebra::Point3::new(c[0], c[1], c[2])).coords));
+            positions.extend(pos.chunks_exact(3).map(|c| {
+                world
+                    .transform_point(&nalgebra::Point3::new(c[0], c[1], c[2]))
+                    .coords
+            }));
             faces.extend(tris.iter().map(|t| {
                 let t = t.map(|i| i + base as u32);
                 if flip { [t[0], t[2], t[1]] } else { t }
@@ -90,28 +99,48 @@ pub fn load_gltf_mesh_from_bytes(bytes: &[u8], path: &Path, options: &ImportOpti
         }
     }
     if faces.is_empty() {
-        return Err(IoError::NoMesh { path: path.to_path_buf() });
+        return Err(IoError::NoMesh {
+            path: path.to_path_buf(),
+        });
     }
     if skinned {
         warnings.push("skinned mesh placed by its node transform; its skin is ignored".into());
     }
     if skipped > 0 {
-        warnings.push(format!("{skipped} non-triangle primitives (points/lines) ignored"));
+        warnings.push(format!(
+            "{skipped} non-triangle primitives (points/lines) ignored"
+        ));
     }
     if !all_uvs && !uvs.is_empty() {
         warnings.push("some primitives have no TEXCOORD_0; UVs dropped".into());
     }
     if !positions.iter().all(|p| p.iter().all(|v| v.is_finite())) {
-        return Err(IoError::NonFinite { what: "vertex positions after the node transforms".into(), path: path.to_path_buf() });
+        return Err(IoError::NonFinite {
+            what: "vertex positions after the node transforms".into(),
+            path: path.to_path_buf(),
+        });
     }
     let extent = largest_extent(&positions);
     let (units, scale) = options.units.resolve(extent, Units::detect_gltf);
     if options.units == Units::Auto && units != Units::Metres {
-        warnings.push(format!("units detected as {} from a largest extent of {extent:.3} file units", units.label()));
+        warnings.push(format!(
+            "units detected as {} from a largest extent of {extent:.3} file units",
+            units.label()
+        ));
     }
     let uvs = (all_uvs && uvs.len() == positions.len()).then_some(uvs);
-    let mut mesh = TriMesh { positions, faces, uvs };
+    let mut mesh = TriMesh {
+        positions,
+        faces,
+        uvs,
+    };
     mesh.map_positions(|p| p * scale);
-    mesh.validate().map_err(|e| doc.invalid(format!("mesh: {e}")))?;
-    Ok(LoadedMesh { name: file_stem(path), mesh, units, warnings })
+    mesh.validate()
+        .map_err(|e| doc.invalid(format!("mesh: {e}")))?;
+    Ok(LoadedMesh {
+        name: file_stem(path),
+        mesh,
+        units,
+        warnings,
+    })
 }

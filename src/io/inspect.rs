@@ -13,7 +13,10 @@ const MAX_TREE_LINES: usize = 40;
 
 /// Loads `path` by its extension and describes what it holds.
 pub fn inspect(path: &Path) -> Result<String, IoError> {
-    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
     let options = ImportOptions::default();
     let mut out = String::new();
     let _ = writeln!(out, "file: {}", path.display());
@@ -28,7 +31,14 @@ pub fn inspect(path: &Path) -> Result<String, IoError> {
                 mesh_lines(&mut out, "body", &a.bind_mesh);
                 let _ = writeln!(out, "animations: {}", a.motions.len());
                 for m in &a.motions {
-                    let _ = writeln!(out, "  '{}': {:.3} s, {} frames at {} fps", m.name, m.duration_secs(), m.frame_count(), m.fps);
+                    let _ = writeln!(
+                        out,
+                        "  '{}': {:.3} s, {} frames at {} fps",
+                        m.name,
+                        m.duration_secs(),
+                        m.frame_count(),
+                        m.fps
+                    );
                 }
                 warnings(&mut out, &loaded.warnings);
             }
@@ -64,22 +74,48 @@ pub fn inspect(path: &Path) -> Result<String, IoError> {
             let rest = bvh.rest_positions();
             let low = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
             if let Some(root) = rest.first() {
-                let _ = writeln!(out, "hip height (rest, above the lowest joint): {:.3} m", (root.y - low) * scale);
+                let _ = writeln!(
+                    out,
+                    "hip height (rest, above the lowest joint): {:.3} m",
+                    (root.y - low) * scale
+                );
             }
-            let mut canonical: Vec<&str> = names.iter().filter_map(|n| canonical_joint_name(n)).collect();
+            let mut canonical: Vec<&str> = names
+                .iter()
+                .filter_map(|n| canonical_joint_name(n))
+                .collect();
             canonical.sort_unstable();
             canonical.dedup();
-            let _ = writeln!(out, "retargetable joints (Mixamo names): {} ({})", canonical.len(), canonical.join(", "));
+            let _ = writeln!(
+                out,
+                "retargetable joints (Mixamo names): {} ({})",
+                canonical.len(),
+                canonical.join(", ")
+            );
             warnings(&mut out, &bvh.warnings);
         }
-        _ => return Err(IoError::UnsupportedFormat { extension: ext, path: path.to_path_buf() }),
+        _ => {
+            return Err(IoError::UnsupportedFormat {
+                extension: ext,
+                path: path.to_path_buf(),
+            });
+        }
     }
     Ok(out)
 }
 
 fn units_line(out: &mut String, asked: Units, used: Units) {
-    let how = if asked == Units::Auto { "detected" } else { "given" };
-    let _ = writeln!(out, "units: {} ({how}; {} m per unit)", used.label(), used.metres_per_unit().unwrap_or(1.0));
+    let how = if asked == Units::Auto {
+        "detected"
+    } else {
+        "given"
+    };
+    let _ = writeln!(
+        out,
+        "units: {} ({how}; {} m per unit)",
+        used.label(),
+        used.metres_per_unit().unwrap_or(1.0)
+    );
 }
 
 fn static_mesh(out: &mut String, options: &ImportOptions, loaded: &LoadedMesh) {
@@ -145,7 +181,9 @@ mod tests {
     #[test]
     fn tree_is_indented_and_cut() {
         let names: Vec<String> = (0..50).map(|i| format!("j{i}")).collect();
-        let parents: Vec<Option<usize>> = (0..50).map(|i| if i == 0 { None } else { Some(0) }).collect();
+        let parents: Vec<Option<usize>> = (0..50)
+            .map(|i| if i == 0 { None } else { Some(0) })
+            .collect();
         let mut out = String::new();
         joint_tree(&mut out, &names, &parents);
         assert!(out.starts_with("joints: 50\n  j0\n    j1\n"));

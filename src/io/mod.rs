@@ -8,7 +8,9 @@
 //! the bytes and the path they came from (used for names, relative resources and messages).
 
 pub mod bvh;
+mod bvh_parse;
 pub mod export;
+mod gltf_accessor;
 mod gltf_anim;
 pub mod gltf_avatar;
 mod gltf_doc;
@@ -42,7 +44,10 @@ pub struct ImportOptions {
 
 impl Default for ImportOptions {
     fn default() -> Self {
-        Self { units: Units::Auto, fps: 30.0 }
+        Self {
+            units: Units::Auto,
+            fps: 30.0,
+        }
     }
 }
 
@@ -83,7 +88,10 @@ pub enum IoError {
         path: PathBuf,
     },
     /// The file extension names no supported format.
-    #[error("unsupported file type '{extension}' (expected glb, gltf, obj or bvh): {}", path.display())]
+    #[error(
+        "unsupported file type '{extension}' (expected glb, gltf, obj or bvh): {}",
+        path.display()
+    )]
     UnsupportedFormat {
         /// The extension found (may be empty).
         extension: String,
@@ -169,7 +177,11 @@ pub enum IoError {
         path: PathBuf,
     },
     /// Retargeting could not map the avatar's core joints to the motion's joints.
-    #[error("cannot map avatar joints {joints:?} to any joint of the motion (motion joints: {available}): {}", path.display())]
+    #[error(
+        "cannot map avatar joints {joints:?} to any joint of the motion (motion joints: \
+         {available}): {}",
+        path.display()
+    )]
     UnmappedJoints {
         /// Avatar joints left without a motion joint.
         joints: Vec<String>,
@@ -221,7 +233,10 @@ impl IoError {
 
 /// Reads a whole file, mapping the error to [`IoError::Read`].
 pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, IoError> {
-    std::fs::read(path).map_err(|source| IoError::Read { source, path: path.to_path_buf() })
+    std::fs::read(path).map_err(|source| IoError::Read {
+        source,
+        path: path.to_path_buf(),
+    })
 }
 
 /// The display name of a file: its stem, or the whole path when it has none.
@@ -236,6 +251,9 @@ pub(crate) fn check_fps(fps: f32, path: &Path) -> Result<f32, IoError> {
     if fps.is_finite() && fps > 0.0 && fps <= 1000.0 {
         Ok(fps)
     } else {
-        Err(IoError::Unsupported { what: format!("frame rate {fps} (must be in (0, 1000] fps)"), path: path.to_path_buf() })
+        Err(IoError::Unsupported {
+            what: format!("frame rate {fps} (must be in (0, 1000] fps)"),
+            path: path.to_path_buf(),
+        })
     }
 }

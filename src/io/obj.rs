@@ -17,9 +17,18 @@ pub fn load_obj(path: &Path, options: &ImportOptions) -> Result<LoadedMesh, IoEr
 }
 
 /// Parses OBJ bytes; `path` names the mesh and ends error messages.
-pub fn load_obj_from_bytes(bytes: &[u8], path: &Path, options: &ImportOptions) -> Result<LoadedMesh, IoError> {
+pub fn load_obj_from_bytes(
+    bytes: &[u8],
+    path: &Path,
+    options: &ImportOptions,
+) -> Result<LoadedMesh, IoError> {
     let text = String::from_utf8_lossy(bytes);
-    let syntax = |line: usize, reason: String| IoError::Syntax { format: "OBJ", line, reason, path: path.to_path_buf() };
+    let syntax = |line: usize, reason: String| IoError::Syntax {
+        format: "OBJ",
+        line,
+        reason,
+        path: path.to_path_buf(),
+    };
     let mut positions: Vec<Vec3> = Vec::new();
     let mut tex: Vec<[f32; 2]> = Vec::new();
     let mut normals = 0usize;
@@ -37,22 +46,35 @@ pub fn load_obj_from_bytes(bytes: &[u8], path: &Path, options: &ImportOptions) -
         };
         match keyword {
             "v" => {
-                let xyz = parse_floats::<3>(&mut tokens).map_err(|r| syntax(line_no, format!("vertex: {r}")))?;
+                let xyz = parse_floats::<3>(&mut tokens)
+                    .map_err(|r| syntax(line_no, format!("vertex: {r}")))?;
                 if !xyz.iter().all(|v| v.is_finite()) {
-                    return Err(IoError::NonFinite { what: format!("vertex {} at line {line_no}", positions.len() + 1), path: path.to_path_buf() });
+                    return Err(IoError::NonFinite {
+                        what: format!("vertex {} at line {line_no}", positions.len() + 1),
+                        path: path.to_path_buf(),
+                    });
                 }
                 positions.push(Vec3::from(xyz));
                 vertex_uv.push(None);
                 seam.push(false);
             }
             "vt" => {
-                let u = parse_floats::<1>(&mut tokens).map_err(|r| syntax(line_no, format!("texture coordinate: {r}")))?[0];
+                let u = parse_floats::<1>(&mut tokens)
+                    .map_err(|r| syntax(line_no, format!("texture coordinate: {r}")))?[0];
                 let v = match tokens.next() {
-                    Some(t) => t.parse::<f32>().map_err(|_| syntax(line_no, format!("texture coordinate: '{t}' is not a number")))?,
+                    Some(t) => t.parse::<f32>().map_err(|_| {
+                        syntax(
+                            line_no,
+                            format!("texture coordinate: '{t}' is not a number"),
+                        )
+                    })?,
                     None => 0.0,
                 };
                 if !(u.is_finite() && v.is_finite()) {
-                    return Err(IoError::NonFinite { what: format!("texture coordinate at line {line_no}"), path: path.to_path_buf() });
+                    return Err(IoError::NonFinite {
+                        what: format!("texture coordinate at line {line_no}"),
+                        path: path.to_path_buf(),
+                    });
                 }
                 tex.push([u, v]);
             }
@@ -61,9 +83,13 @@ pub fn load_obj_from_bytes(bytes: &[u8], path: &Path, options: &ImportOptions) -
                 corners.clear();
                 for token in tokens {
                     let mut parts = token.split('/');
-                    let v = resolve(parts.next().unwrap_or(""), positions.len(), "vertex").map_err(|r| syntax(line_no, r))?;
+                    let v = resolve(parts.next().unwrap_or(""), positions.len(), "vertex")
+                        .map_err(|r| syntax(line_no, r))?;
                     let vt = match parts.next() {
-                        Some(s) if !s.is_empty() => Some(resolve(s, tex.len(), "texture coordinate").map_err(|r| syntax(line_no, r))?),
+                        Some(s) if !s.is_empty() => Some(
+                            resolve(s, tex.len(), "texture coordinate")
+                                .map_err(|r| syntax(line_no, r))?,
+                        ),
                         _ => None,
                     };
                     if let Some(s) = parts.next().filter(|s| !s.is_empty()) {
@@ -72,14 +98,21 @@ pub fn load_obj_from_bytes(bytes: &[u8], path: &Path, options: &ImportOptions) -
                     corners.push((v, vt));
                 }
                 if corners.len() < 3 {
-                    return Err(syntax(line_no, format!("face with {} vertices (at least 3 needed)", corners.len())));
+                    return Err(syntax(
+                        line_no,
+                        format!("face with {} vertices (at least 3 needed)", corners.len()),
+                    ));
                 }
                 for &(v, vt) in &corners {
                     let slot = &mut vertex_uv[v as usize];
                     match (vt, *slot) {
                         (None, _) => corner_without_uv = true,
                         (Some(t), None) => *slot = Some(t),
-                        (Some(t), Some(old)) if old != t && tex[old as usize] != tex[t as usize] => seam[v as usize] = true,
+                        (Some(t), Some(old))
+                            if old != t && tex[old as usize] != tex[t as usize] =>
+                        {
+                            seam[v as usize] = true
+                        }
                         _ => {}
                     }
                 }
@@ -92,11 +125,15 @@ pub fn load_obj_from_bytes(bytes: &[u8], path: &Path, options: &ImportOptions) -
         }
     }
     if positions.is_empty() || faces.is_empty() {
-        return Err(IoError::NoMesh { path: path.to_path_buf() });
+        return Err(IoError::NoMesh {
+            path: path.to_path_buf(),
+        });
     }
     let mut warnings = Vec::new();
     if ignored > 0 {
-        warnings.push(format!("{ignored} point, line, curve or surface elements ignored"));
+        warnings.push(format!(
+            "{ignored} point, line, curve or surface elements ignored"
+        ));
     }
     let seams = seam.iter().filter(|&&s| s).count();
     let uvs = if corner_without_uv || tex.is_empty() {
@@ -106,39 +143,80 @@ pub fn load_obj_from_bytes(bytes: &[u8], path: &Path, options: &ImportOptions) -
         None
     } else {
         if seams > 0 {
-            warnings.push(format!("{seams} vertices have several UVs (UV seams); the first UV of each is kept"));
+            warnings.push(format!(
+                "{seams} vertices have several UVs (UV seams); the first UV of each is kept"
+            ));
         }
-        Some(vertex_uv.iter().map(|t| t.and_then(|t| tex.get(t as usize).copied()).unwrap_or([0.0, 0.0])).collect())
+        Some(
+            vertex_uv
+                .iter()
+                .map(|t| {
+                    t.and_then(|t| tex.get(t as usize).copied())
+                        .unwrap_or([0.0, 0.0])
+                })
+                .collect(),
+        )
     };
     let extent = largest_extent(&positions);
     let (units, scale) = options.units.resolve(extent, Units::detect_mesh);
     if options.units == Units::Auto && units != Units::Metres {
-        warnings.push(format!("units detected as {} from a largest extent of {extent:.3} file units", units.label()));
+        warnings.push(format!(
+            "units detected as {} from a largest extent of {extent:.3} file units",
+            units.label()
+        ));
     }
-    let mut mesh = TriMesh { positions, faces, uvs };
+    let mut mesh = TriMesh {
+        positions,
+        faces,
+        uvs,
+    };
     mesh.map_positions(|p| p * scale);
-    mesh.validate().map_err(|e| IoError::Syntax { format: "OBJ", line: 0, reason: e.to_string(), path: path.to_path_buf() })?;
-    Ok(LoadedMesh { name: file_stem(path), mesh, units, warnings })
+    mesh.validate().map_err(|e| IoError::Syntax {
+        format: "OBJ",
+        line: 0,
+        reason: e.to_string(),
+        path: path.to_path_buf(),
+    })?;
+    Ok(LoadedMesh {
+        name: file_stem(path),
+        mesh,
+        units,
+        warnings,
+    })
 }
 
 /// Parses the next `N` tokens as floats.
-fn parse_floats<'a, const N: usize>(tokens: &mut impl Iterator<Item = &'a str>) -> Result<[f32; N], String> {
+fn parse_floats<'a, const N: usize>(
+    tokens: &mut impl Iterator<Item = &'a str>,
+) -> Result<[f32; N], String> {
     let mut out = [0.0; N];
     for (i, slot) in out.iter_mut().enumerate() {
         let Some(t) = tokens.next() else {
             return Err(format!("{N} numbers expected, found {i}"));
         };
-        *slot = t.parse::<f32>().map_err(|_| format!("'{t}' is not a number"))?;
+        *slot = t
+            .parse::<f32>()
+            .map_err(|_| format!("'{t}' is not a number"))?;
     }
     Ok(out)
 }
 
 /// Resolves a 1-based (or negative, relative) OBJ index against `count` defined elements.
 fn resolve(token: &str, count: usize, what: &str) -> Result<u32, String> {
-    let i: i64 = token.parse().map_err(|_| format!("'{token}' is not a {what} index"))?;
-    let index = if i > 0 { i - 1 } else if i < 0 { count as i64 + i } else { -1 };
+    let i: i64 = token
+        .parse()
+        .map_err(|_| format!("'{token}' is not a {what} index"))?;
+    let index = if i > 0 {
+        i - 1
+    } else if i < 0 {
+        count as i64 + i
+    } else {
+        -1
+    };
     if i == 0 || index < 0 || index >= count as i64 || index > u32::MAX as i64 {
-        return Err(format!("{what} index {i} is out of range ({count} defined so far)"));
+        return Err(format!(
+            "{what} index {i} is out of range ({count} defined so far)"
+        ));
     }
     Ok(index as u32)
 }
@@ -148,7 +226,14 @@ mod tests {
     use super::*;
 
     fn load(text: &str) -> Result<LoadedMesh, IoError> {
-        load_obj_from_bytes(text.as_bytes(), Path::new("t.obj"), &ImportOptions { units: Units::Metres, ..Default::default() })
+        load_obj_from_bytes(
+            text.as_bytes(),
+            Path::new("t.obj"),
+            &ImportOptions {
+                units: Units::Metres,
+                ..Default::default()
+            },
+        )
     }
 
     #[test]
@@ -157,7 +242,10 @@ mod tests {
         assert_eq!(m.mesh.faces, vec![[0, 1, 2], [0, 2, 3], [0, 2, 3]]);
         assert!(m.mesh.uvs.is_none(), "a corner without vt drops UVs");
         let m = load("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0.5 0.5\nf 1/1 2/2 3/3\nf 3/4 2/2 1/1\n").unwrap();
-        assert_eq!(m.mesh.uvs.as_deref(), Some(&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]][..]));
+        assert_eq!(
+            m.mesh.uvs.as_deref(),
+            Some(&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]][..])
+        );
         assert!(m.warnings.iter().any(|w| w.contains("several UVs")));
     }
 
@@ -180,7 +268,12 @@ mod tests {
     #[test]
     fn units_are_detected() {
         let text = "v 0 0 0\nv 10 0 0\nv 0 17 0\nf 1 2 3\n";
-        let m = load_obj_from_bytes(text.as_bytes(), Path::new("t.obj"), &ImportOptions::default()).unwrap();
+        let m = load_obj_from_bytes(
+            text.as_bytes(),
+            Path::new("t.obj"),
+            &ImportOptions::default(),
+        )
+        .unwrap();
         assert_eq!(m.units, Units::Decimetres);
         assert!((m.mesh.positions[2].y - 1.7).abs() < 1e-6);
     }

@@ -29,18 +29,36 @@ pub struct RetargetOptions {
 
 impl Default for RetargetOptions {
     fn default() -> Self {
-        Self { fps: 30.0, recentre: true }
+        Self {
+            fps: 30.0,
+            recentre: true,
+        }
     }
 }
 
 /// Canonical names every avatar must map when it has them: hips, spine, upper legs, legs,
 /// arms and forearms.
-pub const CORE_JOINTS: [&str; 10] = ["Hips", "Spine", "LeftUpLeg", "RightUpLeg", "LeftLeg", "RightLeg", "LeftArm", "RightArm", "LeftForeArm", "RightForeArm"];
+pub const CORE_JOINTS: [&str; 10] = [
+    "Hips",
+    "Spine",
+    "LeftUpLeg",
+    "RightUpLeg",
+    "LeftLeg",
+    "RightLeg",
+    "LeftArm",
+    "RightArm",
+    "LeftForeArm",
+    "RightForeArm",
+];
 
 /// Lower-case alphanumerics of a name after its last `:` (namespace) and known rig prefixes.
 fn normalise(name: &str) -> String {
     let tail = name.rsplit(':').next().unwrap_or(name);
-    let mut s: String = tail.chars().filter(|c| c.is_ascii_alphanumeric()).collect::<String>().to_ascii_lowercase();
+    let mut s: String = tail
+        .chars()
+        .filter(|c| c.is_ascii_alphanumeric())
+        .collect::<String>()
+        .to_ascii_lowercase();
     for prefix in ["mixamorig", "bip001", "bip01"] {
         if let Some(rest) = s.strip_prefix(prefix) {
             s = rest.to_string();
@@ -56,8 +74,14 @@ fn normalise(name: &str) -> String {
 /// `Spine2`; CMU helper joints such as `LHipJoint` or `LowerBack` give `None`.
 pub fn canonical_joint_name(name: &str) -> Option<&'static str> {
     let tail = name.rsplit(':').next().unwrap_or(name);
-    let tail = ["mixamorig", "Bip001", "Bip01", "bip001", "bip01"].iter().fold(tail, |t, p| t.strip_prefix(p).unwrap_or(t));
-    let tokens: Vec<String> = tail.split(|c: char| !c.is_ascii_alphanumeric()).filter(|t| !t.is_empty()).map(str::to_string).collect();
+    let tail = ["mixamorig", "Bip001", "Bip01", "bip001", "bip01"]
+        .iter()
+        .fold(tail, |t, p| t.strip_prefix(p).unwrap_or(t));
+    let tokens: Vec<String> = tail
+        .split(|c: char| !c.is_ascii_alphanumeric())
+        .filter(|t| !t.is_empty())
+        .map(str::to_string)
+        .collect();
     let mut side: Option<bool> = None; // Some(true) = left
     let mut parts: Vec<String> = Vec::new();
     for token in &tokens {
@@ -77,7 +101,10 @@ pub fn canonical_joint_name(name: &str) -> Option<&'static str> {
         } else if let Some(rest) = lower.strip_prefix("right") {
             side = Some(false);
             base = rest.to_string();
-        } else if chars.len() > 1 && matches!(chars[0], 'L' | 'l' | 'R' | 'r') && chars[1].is_ascii_uppercase() {
+        } else if chars.len() > 1
+            && matches!(chars[0], 'L' | 'l' | 'R' | 'r')
+            && chars[1].is_ascii_uppercase()
+        {
             // CMU / Daz style: LHipJoint, lThigh, rShldr.
             side = Some(matches!(chars[0], 'L' | 'l'));
             base = chars[1..].iter().collect();
@@ -122,7 +149,16 @@ pub fn canonical_joint_name(name: &str) -> Option<&'static str> {
                 ("Foot", "LeftFoot"),
                 ("ToeBase", "LeftToeBase"),
             ];
-            const RIGHT: [&str; 8] = ["RightShoulder", "RightArm", "RightForeArm", "RightHand", "RightUpLeg", "RightLeg", "RightFoot", "RightToeBase"];
+            const RIGHT: [&str; 8] = [
+                "RightShoulder",
+                "RightArm",
+                "RightForeArm",
+                "RightHand",
+                "RightUpLeg",
+                "RightLeg",
+                "RightFoot",
+                "RightToeBase",
+            ];
             let k = LEFT.iter().position(|(p, _)| *p == part)?;
             Some(if left { LEFT[k].1 } else { RIGHT[k] })
         }
@@ -132,16 +168,23 @@ pub fn canonical_joint_name(name: &str) -> Option<&'static str> {
 /// For each avatar joint, the BVH joint that drives it.
 pub fn map_joints(bvh: &Bvh, skeleton: &Skeleton) -> Vec<Option<usize>> {
     let bvh_norm: Vec<String> = bvh.joints.iter().map(|j| normalise(&j.name)).collect();
-    let bvh_canon: Vec<Option<&str>> = bvh.joints.iter().map(|j| canonical_joint_name(&j.name)).collect();
+    let bvh_canon: Vec<Option<&str>> = bvh
+        .joints
+        .iter()
+        .map(|j| canonical_joint_name(&j.name))
+        .collect();
     skeleton
         .names
         .iter()
         .map(|name| {
             let n = normalise(name);
-            bvh_norm.iter().position(|b| !n.is_empty() && *b == n).or_else(|| {
-                let c = canonical_joint_name(name)?;
-                bvh_canon.iter().position(|b| *b == Some(c))
-            })
+            bvh_norm
+                .iter()
+                .position(|b| !n.is_empty() && *b == n)
+                .or_else(|| {
+                    let c = canonical_joint_name(name)?;
+                    bvh_canon.iter().position(|b| *b == Some(c))
+                })
         })
         .collect()
 }
@@ -149,39 +192,88 @@ pub fn map_joints(bvh: &Bvh, skeleton: &Skeleton) -> Vec<Option<usize>> {
 /// Retargets `bvh` onto `skeleton`, resampled to `options.fps`. Returns the motion and
 /// warnings. Errors (naming the BVH file) when a core joint of the avatar (see
 /// [`CORE_JOINTS`]) has no BVH counterpart, listing those joints.
-pub fn retarget_bvh(bvh: &Bvh, skeleton: &Skeleton, options: &RetargetOptions) -> Result<(Motion, Vec<String>), IoError> {
+pub fn retarget_bvh(
+    bvh: &Bvh,
+    skeleton: &Skeleton,
+    options: &RetargetOptions,
+) -> Result<(Motion, Vec<String>), IoError> {
     let fps = check_fps(options.fps, &bvh.path)?;
     let path = || bvh.path.clone();
     if bvh.duration_secs() * fps > 2.0e5 {
-        return Err(IoError::Unsupported { what: format!("a {} s motion (too long to resample at {fps} fps)", bvh.duration_secs()), path: path() });
+        return Err(IoError::Unsupported {
+            what: format!(
+                "a {} s motion (too long to resample at {fps} fps)",
+                bvh.duration_secs()
+            ),
+            path: path(),
+        });
     }
     let n = skeleton.len();
     let map = map_joints(bvh, skeleton);
     let bvh_names: Vec<&str> = bvh.joints.iter().map(|j| j.name.as_str()).collect();
     let unmapped_core: Vec<String> = (0..n)
-        .filter(|&a| map[a].is_none() && canonical_joint_name(&skeleton.names[a]).is_some_and(|c| CORE_JOINTS.contains(&c)))
+        .filter(|&a| {
+            map[a].is_none()
+                && canonical_joint_name(&skeleton.names[a])
+                    .is_some_and(|c| CORE_JOINTS.contains(&c))
+        })
         .map(|a| skeleton.names[a].clone())
         .collect();
     if !unmapped_core.is_empty() || map.iter().all(Option::is_none) {
-        let joints = if unmapped_core.is_empty() { skeleton.names.iter().take(12).cloned().collect() } else { unmapped_core };
-        return Err(IoError::UnmappedJoints { joints, available: short_list(&bvh_names, 12), path: path() });
+        let joints = if unmapped_core.is_empty() {
+            skeleton.names.iter().take(12).cloned().collect()
+        } else {
+            unmapped_core
+        };
+        return Err(IoError::UnmappedJoints {
+            joints,
+            available: short_list(&bvh_names, 12),
+            path: path(),
+        });
     }
     let mut warnings = Vec::new();
-    let unmapped: Vec<&str> = (0..n).filter(|&a| map[a].is_none()).map(|a| skeleton.names[a].as_str()).collect();
+    let unmapped: Vec<&str> = (0..n)
+        .filter(|&a| map[a].is_none())
+        .map(|a| skeleton.names[a].as_str())
+        .collect();
     if !unmapped.is_empty() {
-        warnings.push(format!("{} avatar joints keep their rest rotation: {}", unmapped.len(), short_list(&unmapped, 8)));
+        warnings.push(format!(
+            "{} avatar joints keep their rest rotation: {}",
+            unmapped.len(),
+            short_list(&unmapped, 8)
+        ));
     }
 
     // Avatar rest.
     let rest_pose = skeleton.rest_pose();
     let rest_world = skeleton.world_from_joint(&rest_pose);
     let rest_rot: Vec<Quat> = rest_world.iter().map(rotation_of).collect();
-    let rest_pos: Vec<Vec3> = rest_world.iter().map(|m| m.fixed_view::<3, 1>(0, 3).into_owned()).collect();
-    let root_parent_rot: Vec<Quat> = skeleton.world_from_root_parent.iter().map(rotation_of).collect();
+    let rest_pos: Vec<Vec3> = rest_world
+        .iter()
+        .map(|m| m.fixed_view::<3, 1>(0, 3).into_owned())
+        .collect();
+    let root_parent_rot: Vec<Quat> = skeleton
+        .world_from_root_parent
+        .iter()
+        .map(rotation_of)
+        .collect();
 
     // Hips: the avatar joint driven by the BVH root, else the mapped "Hips", else the first mapped.
-    let Some(hips_a) = map.iter().position(|m| *m == Some(0)).or_else(|| (0..n).find(|&a| map[a].is_some() && canonical_joint_name(&skeleton.names[a]) == Some("Hips"))).or_else(|| map.iter().position(Option::is_some)) else {
-        return Err(IoError::UnmappedJoints { joints: skeleton.names.iter().take(12).cloned().collect(), available: short_list(&bvh_names, 12), path: path() });
+    let Some(hips_a) = map
+        .iter()
+        .position(|m| *m == Some(0))
+        .or_else(|| {
+            (0..n).find(|&a| {
+                map[a].is_some() && canonical_joint_name(&skeleton.names[a]) == Some("Hips")
+            })
+        })
+        .or_else(|| map.iter().position(Option::is_some))
+    else {
+        return Err(IoError::UnmappedJoints {
+            joints: skeleton.names.iter().take(12).cloned().collect(),
+            available: short_list(&bvh_names, 12),
+            path: path(),
+        });
     };
     let hips_b = map[hips_a].unwrap_or(0);
 
@@ -200,9 +292,16 @@ pub fn retarget_bvh(bvh: &Bvh, skeleton: &Skeleton, options: &RetargetOptions) -
 
     // BVH world transforms per frame; ground = lowest joint over the whole motion.
     let worlds: Vec<Vec<(Quat, Vec3)>> = (0..bvh.frame_count()).map(|f| bvh.world(f)).collect();
-    let ground_b = worlds.iter().flat_map(|w| w.iter().map(|(_, p)| p.y)).fold(f32::INFINITY, f32::min);
+    let ground_b = worlds
+        .iter()
+        .flat_map(|w| w.iter().map(|(_, p)| p.y))
+        .fold(f32::INFINITY, f32::min);
     let ground_a = min_y(&rest_pos);
-    let start_b = worlds.first().and_then(|w| w.get(hips_b)).map(|(_, p)| *p).unwrap_or_else(Vec3::zeros);
+    let start_b = worlds
+        .first()
+        .and_then(|w| w.get(hips_b))
+        .map(|(_, p)| *p)
+        .unwrap_or_else(Vec3::zeros);
 
     let mut under_root0 = Some(hips_a);
     while let Some(j) = under_root0 {
@@ -212,9 +311,15 @@ pub fn retarget_bvh(bvh: &Bvh, skeleton: &Skeleton, options: &RetargetOptions) -
         under_root0 = skeleton.parents[j];
     }
     if under_root0.is_none() {
-        warnings.push(format!("joint '{}' is not under joint 0; root translation not retargeted", skeleton.names[hips_a]));
+        warnings.push(format!(
+            "joint '{}' is not under joint 0; root translation not retargeted",
+            skeleton.names[hips_a]
+        ));
     }
-    let root_linear_inv = skeleton.world_from_root_parent[0].fixed_view::<3, 3>(0, 0).into_owned().try_inverse();
+    let root_linear_inv = skeleton.world_from_root_parent[0]
+        .fixed_view::<3, 3>(0, 0)
+        .into_owned()
+        .try_inverse();
 
     let mut frames = Vec::with_capacity(worlds.len());
     for w in &worlds {
@@ -233,11 +338,29 @@ pub fn retarget_bvh(bvh: &Bvh, skeleton: &Skeleton, options: &RetargetOptions) -
             let local = parent_rot.inverse() * world;
             rotations[a] = Quat::new_normalize(local.into_inner());
         }
-        let mut pose = Pose { rotations, root_translation: rest_pose.root_translation };
-        if let (Some(_), Some(inv), Some((_, p_b))) = (under_root0, root_linear_inv, w.get(hips_b)) {
-            let offset = if options.recentre { Vec3::new(rest_pos[hips_a].x - scale * start_b.x, 0.0, rest_pos[hips_a].z - scale * start_b.z) } else { Vec3::zeros() };
-            let target = Vec3::new(scale * p_b.x, ground_a + scale * (p_b.y - ground_b), scale * p_b.z) + offset;
-            let current = skeleton.world_from_joint(&pose)[hips_a].fixed_view::<3, 1>(0, 3).into_owned();
+        let mut pose = Pose {
+            rotations,
+            root_translation: rest_pose.root_translation,
+        };
+        if let (Some(_), Some(inv), Some((_, p_b))) = (under_root0, root_linear_inv, w.get(hips_b))
+        {
+            let offset = if options.recentre {
+                Vec3::new(
+                    rest_pos[hips_a].x - scale * start_b.x,
+                    0.0,
+                    rest_pos[hips_a].z - scale * start_b.z,
+                )
+            } else {
+                Vec3::zeros()
+            };
+            let target = Vec3::new(
+                scale * p_b.x,
+                ground_a + scale * (p_b.y - ground_b),
+                scale * p_b.z,
+            ) + offset;
+            let current = skeleton.world_from_joint(&pose)[hips_a]
+                .fixed_view::<3, 1>(0, 3)
+                .into_owned();
             let shift = inv * (target - current);
             if shift.iter().all(|v| v.is_finite()) {
                 pose.root_translation += shift;
@@ -245,7 +368,10 @@ pub fn retarget_bvh(bvh: &Bvh, skeleton: &Skeleton, options: &RetargetOptions) -
         }
         frames.push(pose);
     }
-    let scene_err = |source| IoError::Scene { source, path: path() };
+    let scene_err = |source| IoError::Scene {
+        source,
+        path: path(),
+    };
     let native = Motion::new(bvh.name.clone(), bvh.fps(), frames, n).map_err(scene_err)?;
     let motion = native.resample(fps).map_err(scene_err)?;
     Ok((motion, warnings))
@@ -293,7 +419,10 @@ mod tests {
         let bvh = Bvh::parse(BVH.as_bytes(), Path::new("m.bvh")).unwrap();
         let (sk, units) = bvh.to_skeleton(Units::Centimetres).unwrap();
         assert_eq!(units, Units::Centimetres);
-        let opts = RetargetOptions { fps: 2.0, recentre: false };
+        let opts = RetargetOptions {
+            fps: 2.0,
+            recentre: false,
+        };
         let (motion, warnings) = retarget_bvh(&bvh, &sk, &opts).unwrap();
         assert!(warnings.is_empty(), "{warnings:?}");
         assert_eq!(motion.frame_count(), 3);
@@ -306,7 +435,10 @@ mod tests {
                 // Same shape (relative to the hips) and same hip trajectory, in metres.
                 let rel_a = p[j] - p[0];
                 let rel_b = (w[j].1 - w[0].1) * 0.01;
-                assert!((rel_a - rel_b).norm() < 1e-5, "frame {f} joint {j}: {rel_a:?} vs {rel_b:?}");
+                assert!(
+                    (rel_a - rel_b).norm() < 1e-5,
+                    "frame {f} joint {j}: {rel_a:?} vs {rel_b:?}"
+                );
                 assert!(motion.frames[f].rotations[j].angle_to(&bvh.local(f, j).1) < 1e-4);
             }
             assert!(((p[0] - first_a) - (w[0].1 - first) * 0.01).norm() < 1e-5);
@@ -316,12 +448,20 @@ mod tests {
     #[test]
     fn missing_core_joints_are_listed() {
         let bvh = Bvh::parse(BVH.as_bytes(), Path::new("m.bvh")).unwrap();
-        let mut names = vec!["Hips".to_string(), "Spine".into(), "RightUpLeg".into(), "RightLeg".into()];
+        let mut names = vec![
+            "Hips".to_string(),
+            "Spine".into(),
+            "RightUpLeg".into(),
+            "RightLeg".into(),
+        ];
         let (mut sk, _) = bvh.to_skeleton(Units::Metres).unwrap();
         std::mem::swap(&mut sk.names, &mut names);
         let err = retarget_bvh(&bvh, &sk, &RetargetOptions::default()).unwrap_err();
         match &err {
-            IoError::UnmappedJoints { joints, .. } => assert_eq!(joints, &vec!["RightUpLeg".to_string(), "RightLeg".to_string()]),
+            IoError::UnmappedJoints { joints, .. } => assert_eq!(
+                joints,
+                &vec!["RightUpLeg".to_string(), "RightLeg".to_string()]
+            ),
             other => panic!("unexpected {other}"),
         }
         assert!(err.to_string().ends_with("m.bvh"));

@@ -2,7 +2,7 @@
 //! `scene::procedural`, file sources from the importers of this layer (glTF/GLB avatars, OBJ or
 //! glTF garments, BVH motions retargeted onto the avatar, glTF animations of the same rig).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::scene::config::{AvatarSource, GarmentSource, LengthUnit, MotionSource, SceneConfig, Split};
 use crate::scene::procedural::{builtin_garment, builtin_motion, mannequin};
@@ -133,14 +133,12 @@ fn extension(file: &Path) -> String {
     file.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default()
 }
 
-fn units_of(unit: Option<LengthUnit>, file: &Path) -> Result<Units, IoError> {
+fn units_of(unit: Option<LengthUnit>, _file: &Path) -> Result<Units, IoError> {
     Ok(match unit {
         None => Units::Auto,
         Some(LengthUnit::Metres) => Units::Metres,
         Some(LengthUnit::Centimetres) => Units::Centimetres,
         Some(LengthUnit::Millimetres) => Units::Millimetres,
-        Some(LengthUnit::Inches) => {
-            return Err(IoError::Unsupported { what: "inches as a file unit".into(), path: PathBuf::from(file) });
-        }
+        Some(LengthUnit::Inches) => Units::Inches,
     })
 }

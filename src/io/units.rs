@@ -18,6 +18,8 @@ pub enum Units {
     Centimetres,
     /// Millimetres.
     Millimetres,
+    /// Inches (some DCC and motion-capture exports).
+    Inches,
     /// The CMU motion-capture database's units (about 5.6 cm each).
     CmuMocap,
 }
@@ -31,6 +33,7 @@ impl Units {
             Units::Decimetres => Some(0.1),
             Units::Centimetres => Some(0.01),
             Units::Millimetres => Some(0.001),
+            Units::Inches => Some(0.0254),
             Units::CmuMocap => Some(CMU_MOCAP_TO_METRES),
         }
     }
@@ -82,7 +85,11 @@ impl Units {
 
     /// Resolves `Auto` with `detect`, returning the unit and metres per unit.
     pub fn resolve(self, extent: f32, detect: fn(f32) -> Units) -> (Units, f32) {
-        let units = if self == Units::Auto { detect(extent) } else { self };
+        let units = if self == Units::Auto {
+            detect(extent)
+        } else {
+            self
+        };
         (units, units.metres_per_unit().unwrap_or(1.0))
     }
 
@@ -94,6 +101,7 @@ impl Units {
             Units::Decimetres => "decimetres",
             Units::Centimetres => "centimetres",
             Units::Millimetres => "millimetres",
+            Units::Inches => "inches",
             Units::CmuMocap => "CMU mocap units",
         }
     }
@@ -126,13 +134,22 @@ mod tests {
         assert_eq!(Units::detect_mocap(25.0), Units::CmuMocap);
         assert_eq!(Units::detect_mocap(152.0), Units::Centimetres);
         assert!((CMU_MOCAP_TO_METRES - 0.056444).abs() < 1e-5);
-        assert_eq!(Units::Metres.resolve(100.0, Units::detect_mesh), (Units::Metres, 1.0));
-        assert_eq!(Units::Auto.resolve(100.0, Units::detect_mesh), (Units::Centimetres, 0.01));
+        assert_eq!(
+            Units::Metres.resolve(100.0, Units::detect_mesh),
+            (Units::Metres, 1.0)
+        );
+        assert_eq!(
+            Units::Auto.resolve(100.0, Units::detect_mesh),
+            (Units::Centimetres, 0.01)
+        );
     }
 
     #[test]
     fn extent_of_points() {
-        let pts = [crate::geometry::Vec3::new(0.0, 0.0, 0.0), crate::geometry::Vec3::new(1.0, 5.0, -2.0)];
+        let pts = [
+            crate::geometry::Vec3::new(0.0, 0.0, 0.0),
+            crate::geometry::Vec3::new(1.0, 5.0, -2.0),
+        ];
         assert_eq!(largest_extent(&pts), 5.0);
         assert_eq!(largest_extent(&[]), 0.0);
     }

@@ -45,16 +45,23 @@ pub struct DescriptorConfig {
 impl Default for DescriptorConfig {
     fn default() -> Self {
         let patterns = [
-            "hand", "foot", "toe", "_end", "headtop", "finger", "thumb", "index", "middle", "ring", "pinky", "eye",
-            "jaw", "tongue", "nose", "site",
+            "hand", "foot", "toe", "_end", "headtop", "finger", "thumb", "index", "middle", "ring",
+            "pinky", "eye", "jaw", "tongue", "nose", "site",
         ];
-        Self { exclude_patterns: patterns.iter().map(|s| s.to_string()).collect(), gravity_dir: [0.0, -1.0, 0.0] }
+        Self {
+            exclude_patterns: patterns.iter().map(|s| s.to_string()).collect(),
+            gravity_dir: [0.0, -1.0, 0.0],
+        }
     }
 }
 
 /// Indices of the joints whose names contain none of `patterns` (case-insensitive).
 pub fn select_input_joints(names: &[String], patterns: &[String]) -> Vec<usize> {
-    let lowered: Vec<String> = patterns.iter().map(|p| p.to_lowercase()).filter(|p| !p.is_empty()).collect();
+    let lowered: Vec<String> = patterns
+        .iter()
+        .map(|p| p.to_lowercase())
+        .filter(|p| !p.is_empty())
+        .collect();
     names
         .iter()
         .enumerate()
@@ -71,16 +78,26 @@ pub fn select_input_joints(names: &[String], patterns: &[String]) -> Vec<usize> 
 /// translation, missing rotations fall back to the rest rotation.
 pub fn world_from_joint_into(skeleton: &Skeleton, pose: &Pose, out: &mut [Mat4]) {
     for j in 0..skeleton.len().min(out.len()) {
-        let Some(rest) = skeleton.rest_local.get(j) else { return };
+        let Some(rest) = skeleton.rest_local.get(j) else {
+            return;
+        };
         let local = JointTransform {
-            translation: if j == 0 { pose.root_translation } else { rest.translation },
+            translation: if j == 0 {
+                pose.root_translation
+            } else {
+                rest.translation
+            },
             rotation: pose.rotations.get(j).copied().unwrap_or(rest.rotation),
             scale: rest.scale,
         }
         .to_matrix();
         let parent = match skeleton.parents.get(j).copied().flatten() {
             Some(p) if p < j => out[p],
-            _ => skeleton.world_from_root_parent.get(j).copied().unwrap_or_else(Mat4::identity),
+            _ => skeleton
+                .world_from_root_parent
+                .get(j)
+                .copied()
+                .unwrap_or_else(Mat4::identity),
         };
         out[j] = parent * local;
     }
@@ -92,8 +109,12 @@ pub fn world_from_joint_into(skeleton: &Skeleton, pose: &Pose, out: &mut [Mat4])
 pub fn rotation_part(m: &Mat4) -> Mat3 {
     let a: Vec3 = m.fixed_view::<3, 1>(0, 0).into_owned();
     let b: Vec3 = m.fixed_view::<3, 1>(0, 1).into_owned();
-    let Some(c0) = safe_normalize(a) else { return Mat3::identity() };
-    let Some(c1) = safe_normalize(b - c0 * c0.dot(&b)) else { return Mat3::identity() };
+    let Some(c0) = safe_normalize(a) else {
+        return Mat3::identity();
+    };
+    let Some(c1) = safe_normalize(b - c0 * c0.dot(&b)) else {
+        return Mat3::identity();
+    };
     Mat3::from_columns(&[c0, c1, c0.cross(&c1)])
 }
 
@@ -115,17 +136,30 @@ pub struct DescriptorStream {
 
 impl DescriptorStream {
     /// A stream for `skeleton` sampled every `dt_secs` seconds (> 0, e.g. 1/30).
-    pub fn new(skeleton: &Skeleton, config: &DescriptorConfig, dt_secs: f32) -> Result<Self, ModelError> {
+    pub fn new(
+        skeleton: &Skeleton,
+        config: &DescriptorConfig,
+        dt_secs: f32,
+    ) -> Result<Self, ModelError> {
         if !(dt_secs.is_finite() && dt_secs > 0.0) {
-            return Err(ModelError::InvalidInput(format!("descriptor time step {dt_secs} s is not positive")));
+            return Err(ModelError::InvalidInput(format!(
+                "descriptor time step {dt_secs} s is not positive"
+            )));
         }
         let g = Vec3::from(config.gravity_dir);
-        let Some(gravity_unit) = safe_normalize(g).filter(|v| v.iter().all(|c| c.is_finite())) else {
-            return Err(ModelError::InvalidInput(format!("gravity direction {:?} has no direction", config.gravity_dir)));
+        let Some(gravity_unit) = safe_normalize(g).filter(|v| v.iter().all(|c| c.is_finite()))
+        else {
+            return Err(ModelError::InvalidInput(format!(
+                "gravity direction {:?} has no direction",
+                config.gravity_dir
+            )));
         };
         let input_joints = select_input_joints(&skeleton.names, &config.exclude_patterns);
         if input_joints.is_empty() {
-            return Err(ModelError::NoInputJoints { patterns: config.exclude_patterns.clone(), joints: skeleton.len() });
+            return Err(ModelError::NoInputJoints {
+                patterns: config.exclude_patterns.clone(),
+                joints: skeleton.len(),
+            });
         }
         let j = input_joints.len();
         Ok(Self {
@@ -136,7 +170,11 @@ impl DescriptorStream {
             static_cur: vec![0.0; j * STATIC_DIM],
             static_prev: vec![0.0; j * STATIC_DIM],
             dynamic: vec![0.0; j * DYNAMIC_DIM],
-            pos: [vec![Vec3::zeros(); j], vec![Vec3::zeros(); j], vec![Vec3::zeros(); j]],
+            pos: [
+                vec![Vec3::zeros(); j],
+                vec![Vec3::zeros(); j],
+                vec![Vec3::zeros(); j],
+            ],
             frames_seen: 0,
             input_joints,
         })
@@ -182,9 +220,14 @@ impl DescriptorStream {
             });
         }
         let finite = pose.root_translation.iter().all(|v| v.is_finite())
-            && pose.rotations.iter().all(|q| q.coords.iter().all(|v| v.is_finite()));
+            && pose
+                .rotations
+                .iter()
+                .all(|q| q.coords.iter().all(|v| v.is_finite()));
         if !finite {
-            return Err(ModelError::InvalidInput("pose has a non-finite rotation or root translation".into()));
+            return Err(ModelError::InvalidInput(
+                "pose has a non-finite rotation or root translation".into(),
+            ));
         }
         Ok(())
     }
@@ -283,7 +326,13 @@ impl Descriptors {
     /// Appends the window of `len` frames ending at frame `last` (inclusive) to the two
     /// outputs (`len * J * 9` and `len * J * 12` values). Frames before 0 are still copies of
     /// frame 0 (its static descriptors, zero dynamics); `last` past the end is clamped.
-    pub fn append_window(&self, last: usize, len: usize, static_out: &mut Vec<f32>, dynamic_out: &mut Vec<f32>) {
+    pub fn append_window(
+        &self,
+        last: usize,
+        len: usize,
+        static_out: &mut Vec<f32>,
+        dynamic_out: &mut Vec<f32>,
+    ) {
         if self.frames == 0 {
             return;
         }
@@ -311,11 +360,20 @@ pub struct DescriptorExtractor {
 
 impl DescriptorExtractor {
     /// An extractor for `skeleton` at `fps` frames per second (> 0).
-    pub fn new(skeleton: &Skeleton, config: &DescriptorConfig, fps: f32) -> Result<Self, ModelError> {
+    pub fn new(
+        skeleton: &Skeleton,
+        config: &DescriptorConfig,
+        fps: f32,
+    ) -> Result<Self, ModelError> {
         if !(fps.is_finite() && fps > 0.0) {
-            return Err(ModelError::InvalidInput(format!("frame rate {fps} is not positive")));
+            return Err(ModelError::InvalidInput(format!(
+                "frame rate {fps} is not positive"
+            )));
         }
-        Ok(Self { stream: DescriptorStream::new(skeleton, config, 1.0 / fps)?, fps })
+        Ok(Self {
+            stream: DescriptorStream::new(skeleton, config, 1.0 / fps)?,
+            fps,
+        })
     }
 
     /// Frame rate in frames per second.
@@ -353,7 +411,8 @@ impl DescriptorExtractor {
         for pose in poses {
             self.stream.push(pose)?;
             out.static_desc.extend_from_slice(self.stream.static_desc());
-            out.dynamic_desc.extend_from_slice(self.stream.dynamic_desc());
+            out.dynamic_desc
+                .extend_from_slice(self.stream.dynamic_desc());
         }
         self.stream.reset();
         Ok(out)
@@ -378,18 +437,46 @@ mod tests {
     fn skeleton(names: &[&str]) -> Skeleton {
         let n = names.len();
         let rest: Vec<JointTransform> = (0..n)
-            .map(|j| JointTransform { translation: if j == 0 { Vec3::zeros() } else { Vec3::y() * 0.3 }, ..Default::default() })
+            .map(|j| JointTransform {
+                translation: if j == 0 {
+                    Vec3::zeros()
+                } else {
+                    Vec3::y() * 0.3
+                },
+                ..Default::default()
+            })
             .collect();
         let parents = (0..n).map(|j| j.checked_sub(1)).collect();
-        Skeleton::new(names.iter().map(|s| s.to_string()).collect(), parents, rest, vec![Mat4::identity(); n], vec![Mat4::identity(); n])
-            .unwrap()
+        Skeleton::new(
+            names.iter().map(|s| s.to_string()).collect(),
+            parents,
+            rest,
+            vec![Mat4::identity(); n],
+            vec![Mat4::identity(); n],
+        )
+        .unwrap()
     }
 
     #[test]
     fn default_patterns_drop_extremities_and_keep_head() {
         let names: Vec<String> = [
-            "Hips", "Spine", "Spine1", "Spine2", "Neck", "Head", "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand",
-            "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase", "RightHandIndex1", "HeadTop_End", "mixamorig:LeftEye",
+            "Hips",
+            "Spine",
+            "Spine1",
+            "Spine2",
+            "Neck",
+            "Head",
+            "LeftShoulder",
+            "LeftArm",
+            "LeftForeArm",
+            "LeftHand",
+            "LeftUpLeg",
+            "LeftLeg",
+            "LeftFoot",
+            "LeftToeBase",
+            "RightHandIndex1",
+            "HeadTop_End",
+            "mixamorig:LeftEye",
         ]
         .iter()
         .map(|s| s.to_string())
@@ -398,14 +485,28 @@ mod tests {
         let kept_names: Vec<&str> = kept.iter().map(|&j| names[j].as_str()).collect();
         assert_eq!(
             kept_names,
-            ["Hips", "Spine", "Spine1", "Spine2", "Neck", "Head", "LeftShoulder", "LeftArm", "LeftForeArm", "LeftUpLeg", "LeftLeg"]
+            [
+                "Hips",
+                "Spine",
+                "Spine1",
+                "Spine2",
+                "Neck",
+                "Head",
+                "LeftShoulder",
+                "LeftArm",
+                "LeftForeArm",
+                "LeftUpLeg",
+                "LeftLeg"
+            ]
         );
     }
 
     #[test]
     fn rotation_part_strips_scale() {
         let q = Quat::from_euler_angles(0.3, -0.5, 1.1);
-        let m = Mat4::new_translation(&Vec3::new(1.0, 2.0, 3.0)) * q.to_homogeneous() * Mat4::new_scaling(0.01);
+        let m = Mat4::new_translation(&Vec3::new(1.0, 2.0, 3.0))
+            * q.to_homogeneous()
+            * Mat4::new_scaling(0.01);
         assert!((rotation_part(&m) - q.to_rotation_matrix().into_inner()).norm() < 1e-5);
         assert_eq!(rotation_part(&Mat4::zeros()), Mat3::identity());
     }
@@ -434,14 +535,28 @@ mod tests {
         pose.rotations[0] = Quat::from_euler_angles(0.0, 0.0, 0.6);
         s.push(&pose).unwrap();
         assert!(s.dynamic_desc()[..STATIC_DIM].iter().any(|v| *v != 0.0));
-        assert!(s.dynamic_desc()[STATIC_DIM..DYNAMIC_DIM].iter().all(|v| *v == 0.0), "no acceleration without two past frames");
+        assert!(
+            s.dynamic_desc()[STATIC_DIM..DYNAMIC_DIM]
+                .iter()
+                .all(|v| *v == 0.0),
+            "no acceleration without two past frames"
+        );
         pose.root_translation.x = f32::NAN;
         assert!(s.push(&pose).is_err());
         pose.rotations.pop();
-        assert!(matches!(s.push(&pose), Err(ModelError::ShapeMismatch { .. })));
+        assert!(matches!(
+            s.push(&pose),
+            Err(ModelError::ShapeMismatch { .. })
+        ));
         assert!(DescriptorStream::new(&sk, &DescriptorConfig::default(), 0.0).is_err());
-        let all = DescriptorConfig { exclude_patterns: vec!["".into(), "a".into(), "b".into()], ..Default::default() };
-        assert!(matches!(DescriptorStream::new(&sk, &all, 0.1), Err(ModelError::NoInputJoints { .. })));
+        let all = DescriptorConfig {
+            exclude_patterns: vec!["".into(), "a".into(), "b".into()],
+            ..Default::default()
+        };
+        assert!(matches!(
+            DescriptorStream::new(&sk, &all, 0.1),
+            Err(ModelError::NoInputJoints { .. })
+        ));
     }
 
     #[test]

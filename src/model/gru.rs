@@ -11,7 +11,7 @@
 //!
 //! With no biases, `x = 0` and `h = 0` give `h' = 0` exactly.
 
-use super::weights::GruWeights;
+use super::weights::{GruWeights, LinearLayer};
 
 /// Scratch buffers for [`gru_step`], sized once.
 #[derive(Clone, Debug)]
@@ -24,7 +24,11 @@ pub struct GruScratch {
 impl GruScratch {
     /// Buffers for a GRU with `d_hidden` units.
     pub fn new(d_hidden: usize) -> Self {
-        Self { gx: vec![0.0; 3 * d_hidden], gh: vec![0.0; 3 * d_hidden], rh: vec![0.0; d_hidden] }
+        Self {
+            gx: vec![0.0; 3 * d_hidden],
+            gh: vec![0.0; 3 * d_hidden],
+            rh: vec![0.0; d_hidden],
+        }
     }
 }
 
@@ -36,7 +40,12 @@ pub fn sigmoid(x: f32) -> f32 {
 
 /// Advances the state `h` (`d_hidden` values) by one input `x` (`d_in` values) in place.
 /// Allocates nothing; `scratch` must come from [`GruScratch::new`] with the same width.
-pub fn gru_step(w: &GruWeights, x: &[f32], h: &mut [f32], scratch: &mut GruScratch) {
+pub fn gru_step<L: LinearLayer>(
+    w: &GruWeights<L>,
+    x: &[f32],
+    h: &mut [f32],
+    scratch: &mut GruScratch,
+) {
     let n = w.d_hidden;
     w.input.forward(x, &mut scratch.gx);
     w.hidden.forward(h, &mut scratch.gh);
@@ -54,19 +63,8 @@ pub fn gru_step(w: &GruWeights, x: &[f32], h: &mut [f32], scratch: &mut GruScrat
         for ((rh, hv), r) in scratch.rh.iter_mut().zip(h.iter()).zip(&gx[n..2 * n]) {
             *rh = hv * r;
         }
-        match &w.hidden.bias {
-            Some(b) => gh[2 * n..].copy_from_slice(&b[2 * n..]),
-            None => gh[2 * n..].fill(0.0),
-        }
-        let cols = w.hidden.d_out;
-        for (r, &hr) in scratch.rh.iter().enumerate() {
-            if hr != 0.0 {
-                let row = &w.hidden.weight[r * cols + 2 * n..(r + 1) * cols];
-                for (g, &wv) in gh[2 * n..].iter_mut().zip(row) {
-                    *g += hr * wv;
-                }
-            }
-        }
+        w.hidden
+            .forward_columns(&scratch.rh, 2 * n, &mut gh[2 * n..]);
     }
     for (i, hv) in h.iter_mut().enumerate().take(n) {
         let cand = (gx[2 * n + i] + gh[2 * n + i]).tanh();
@@ -89,11 +87,18 @@ mod tests {
     fn check(bias: bool, reset_after: bool) {
         let device = Device::flex();
         device.seed(7);
-        let gru = GruConfig::new(3, 4, bias).with_reset_after(reset_after).init(&device);
+        let gru = GruConfig::new(3, 4, bias)
+            .with_reset_after(reset_after)
+            .init(&device);
         let w = GruWeights::from_gru(&gru, "test").unwrap();
-        let xs: Vec<f32> = (0..15).map(|v| ((v * 37 % 11) as f32 - 5.0) * 0.3).collect();
+        let xs: Vec<f32> = (0..15)
+            .map(|v| ((v * 37 % 11) as f32 - 5.0) * 0.3)
+            .collect();
         let out: Vec<f32> = gru
-            .forward(Tensor::<3>::from_data(TensorData::new(xs.clone(), [1, 5, 3]), &device), None)
+            .forward(
+                Tensor::<3>::from_data(TensorData::new(xs.clone(), [1, 5, 3]), &device),
+                None,
+            )
             .try_into_vec_as::<f32>()
             .unwrap();
         let mut h = vec![0.0; 4];
@@ -101,7 +106,10 @@ mod tests {
         for t in 0..5 {
             gru_step(&w, &xs[t * 3..t * 3 + 3], &mut h, &mut s);
             for i in 0..4 {
-                assert!((h[i] - out[t * 4 + i]).abs() < 1e-5, "bias {bias} reset_after {reset_after} t {t}");
+                assert!(
+                    (h[i] - out[t * 4 + i]).abs() < 1e-5,
+                    "bias {bias} reset_after {reset_after} t {t}"
+                );
             }
         }
     }
@@ -115,8 +123,20 @@ mod tests {
 
     #[test]
     fn zero_in_zero_out_without_bias() {
-        let dense = |d_in| DenseWeights { d_in, d_out: 6, weight: vec![0.7; d_in * 6], bias: None };
-        let w = GruWeights { d_in: 3, d_hidden: 2, input: dense(3), hidden: dense(2), reset_after: true, clip: None };
+        let dense = |d_in| DenseWeights {
+            d_in,
+            d_out: 6,
+            weight: vec![0.7; d_in * 6],
+            bias: None,
+        };
+        let w = GruWeights {
+            d_in: 3,
+            d_hidden: 2,
+            input: dense(3),
+            hidden: dense(2),
+            reset_after: true,
+            clip: None,
+        };
         let mut h = vec![0.0; 2];
         gru_step(&w, &[0.0; 3], &mut h, &mut GruScratch::new(2));
         assert!(h.iter().all(|v| *v == 0.0));

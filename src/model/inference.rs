@@ -5,10 +5,13 @@
 //! Per frame: descriptors -> encoders -> `z = z_S + w z_D` -> decoder -> basis product ->
 //! template + offsets -> LBS of the garment, and LBS of the body with the avatar's skin. Every
 //! buffer is allocated when the engine is built, so [`InferenceEngine::step`] allocates
-//! nothing. The bias-free dynamic branch is skipped exactly when its input and state are zero
-//! (a still body from rest), which gives the same result as running it. The basis product is
-//! one pass over the `[latent, V * 3]` row-major basis, blocked by output columns and
-//! optionally spread over a rayon pool, as is the skinning.
+//! nothing. The engine takes the weights by value and keeps them as [`CompiledNet`] (f32, or
+//! f16 converted in place: [`InferenceOptions::basis_precision`]). The bias-free dynamic
+//! branch is skipped exactly when its input and state are zero (a still body from rest),
+//! which gives the same result as running it. The basis product is one pass over the
+//! `[latent, V * 3]` row-major basis, reading only the rows of nonzero decoder outputs, fused
+//! with the template addition and the garment skinning per chunk of vertices (the chunk stays
+//! in L1), and optionally spread over a rayon pool.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -17,14 +20,17 @@ use crate::geometry::{Mat4, SkinWeights, Vec3};
 use crate::scene::{Avatar, Garment, Pose, Skeleton};
 
 use super::ModelError;
+use super::compiled::{CompiledNet, relu_chain_into};
 use super::descriptors::{DYNAMIC_DIM, DescriptorConfig, DescriptorStream, STATIC_DIM};
 use super::gru::{GruScratch, gru_step};
+use super::kernels::{Matrix, Precision};
 use super::network::EncoderKind;
 use super::skinning::{MATRIX_FLOATS, SkinMatrixBuilder, skin_positions_into, write_matrices_3x4};
-use super::weights::{DenseWeights, InferenceWeights};
+use super::weights::InferenceWeights;
 
-/// Output columns per block of the basis product (and vertices per skinning chunk × 3).
-const COLUMN_BLOCK: usize = 2048;
+/// Garment vertices per chunk of the fused basis product + skinning (1536 output columns:
+/// 6 KiB of offsets, rest and posed positions each, all L1-resident).
+const VERTEX_CHUNK: usize = 512;
 
 /// Threading and output options of the engine.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -38,11 +44,36 @@ pub struct InferenceOptions {
     pub parallel_min_values: usize,
     /// Also skin the body mesh every frame; default true.
     pub skin_body: bool,
+    /// Storage of the decoder basis `[latent, V * 3]`, the bulk of the weights and of the
+    /// bytes read per frame: `f16` (default) halves them; garment vertices then move by
+    /// about 10⁻⁵ of the offset size (measured by `neural-cloth bench`; under 1 µm on the
+    /// benchmark garments). A basis with a weight beyond ±65504 stays `f32`.
+    pub basis_precision: Precision,
+    /// Storage of the other matrices (encoders, GRU, decoder MLP): `f32` or `f16`; default
+    /// `f16` (same error scale as the basis, measured together by `neural-cloth bench`).
+    pub layer_precision: Precision,
 }
 
 impl Default for InferenceOptions {
     fn default() -> Self {
-        Self { threads: 1, parallel_min_values: 30_000, skin_body: true }
+        Self {
+            threads: 1,
+            parallel_min_values: 30_000,
+            skin_body: true,
+            basis_precision: Precision::F16,
+            layer_precision: Precision::F16,
+        }
+    }
+}
+
+impl InferenceOptions {
+    /// Full f32 weights: the trained model bit for bit (matches burn to float rounding).
+    pub fn exact() -> Self {
+        Self {
+            basis_precision: Precision::F32,
+            layer_precision: Precision::F32,
+            ..Self::default()
+        }
     }
 }
 
@@ -84,6 +115,8 @@ struct Buffers {
     gru: GruScratch,
     z_s: Vec<f32>,
     z: Vec<f32>,
+    /// Decoder output: the basis coefficients of the frame.
+    h: Vec<f32>,
     offsets: Vec<f32>,
     rest: Vec<f32>,
     garment_mats: Vec<f32>,
@@ -91,13 +124,23 @@ struct Buffers {
 }
 
 impl Buffers {
-    fn new(w: &InferenceWeights, joints_all: usize) -> Self {
-        let width = w.max_width();
-        let (joint_width, joint_out, gru_in, hidden) = match &w.recurrent {
+    fn new(net: &CompiledNet, joints_all: usize) -> Self {
+        let width = net.max_width();
+        let (joint_width, joint_out, gru_in, hidden) = match &net.recurrent {
             Some(r) => {
-                let jw = r.joint_layers.iter().map(|l| l.d_out).chain([STATIC_DIM + DYNAMIC_DIM]).max().unwrap_or(0);
-                let joint_in = if w.kind == EncoderKind::Entangled { STATIC_DIM + DYNAMIC_DIM } else { DYNAMIC_DIM };
-                let jo = r.joint_layers.last().map_or(joint_in, |l| l.d_out);
+                let jw = r
+                    .joint_layers
+                    .iter()
+                    .map(|l| l.d_out())
+                    .chain([STATIC_DIM + DYNAMIC_DIM])
+                    .max()
+                    .unwrap_or(0);
+                let joint_in = if net.kind == EncoderKind::Entangled {
+                    STATIC_DIM + DYNAMIC_DIM
+                } else {
+                    DYNAMIC_DIM
+                };
+                let jo = r.joint_layers.last().map_or(joint_in, |l| l.d_out());
                 (jw, jo, r.gru.d_in, r.gru.d_hidden)
             }
             None => (0, 0, 0, 0),
@@ -108,37 +151,17 @@ impl Buffers {
             joint_in: vec![0.0; STATIC_DIM + DYNAMIC_DIM],
             joint_a: vec![0.0; joint_width],
             joint_b: vec![0.0; joint_width],
-            joint_feat: vec![0.0; w.input_joints * joint_out],
+            joint_feat: vec![0.0; net.input_joints * joint_out],
             gru_in: vec![0.0; gru_in],
             gru: GruScratch::new(hidden),
-            z_s: vec![0.0; w.latent],
-            z: vec![0.0; w.latent],
-            offsets: vec![0.0; w.vertices * 3],
-            rest: vec![0.0; w.vertices * 3],
+            z_s: vec![0.0; net.latent],
+            z: vec![0.0; net.latent],
+            h: vec![0.0; net.basis.rows()],
+            offsets: vec![0.0; net.vertices * 3],
+            rest: vec![0.0; net.vertices * 3],
             garment_mats: vec![0.0; joints_all * MATRIX_FLOATS],
             body_mats: vec![0.0; joints_all * MATRIX_FLOATS],
         }
-    }
-}
-
-/// Runs ReLU layers from `x`, ping-ponging between `a` and `b`, and copies the result into
-/// `out` (which must have the last layer's width, or `x`'s without layers).
-fn relu_chain_into(layers: &[DenseWeights], x: &[f32], a: &mut [f32], b: &mut [f32], out: &mut [f32]) {
-    let mut width = x.len();
-    let mut in_a = None;
-    for l in layers {
-        match in_a {
-            None => l.forward_relu(x, &mut a[..l.d_out]),
-            Some(true) => l.forward_relu(&a[..width], &mut b[..l.d_out]),
-            Some(false) => l.forward_relu(&b[..width], &mut a[..l.d_out]),
-        }
-        in_a = Some(!matches!(in_a, Some(true)));
-        width = l.d_out;
-    }
-    match in_a {
-        None => out.copy_from_slice(x),
-        Some(true) => out.copy_from_slice(&a[..width]),
-        Some(false) => out.copy_from_slice(&b[..width]),
     }
 }
 
@@ -146,7 +169,7 @@ fn relu_chain_into(layers: &[DenseWeights], x: &[f32], a: &mut [f32], b: &mut [f
 /// [`InferenceEngine::step`], read meshes with [`InferenceEngine::garment_positions`] and
 /// [`InferenceEngine::body_positions`].
 pub struct InferenceEngine {
-    weights: InferenceWeights,
+    net: CompiledNet,
     options: InferenceOptions,
     pool: Option<rayon::ThreadPool>,
     stream: DescriptorStream,
@@ -166,9 +189,9 @@ pub struct InferenceEngine {
 impl std::fmt::Debug for InferenceEngine {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("InferenceEngine")
-            .field("kind", &self.weights.kind)
-            .field("input_joints", &self.weights.input_joints)
-            .field("vertices", &self.weights.vertices)
+            .field("kind", &self.net.kind)
+            .field("input_joints", &self.net.input_joints)
+            .field("vertices", &self.net.vertices)
             .field("options", &self.options)
             .finish_non_exhaustive()
     }
@@ -180,7 +203,8 @@ fn flatten(points: &[Vec3]) -> Vec<f32> {
 
 impl InferenceEngine {
     /// An engine for `garment` on `avatar`, with input joints chosen by `descriptors` and
-    /// poses fed at `fps` (the training frame rate).
+    /// poses fed at `fps` (the training frame rate). The engine keeps `weights` (moved, not
+    /// copied; converted in place at f16).
     pub fn from_scene(
         weights: InferenceWeights,
         avatar: &Avatar,
@@ -189,7 +213,13 @@ impl InferenceEngine {
         fps: f32,
         options: InferenceOptions,
     ) -> Result<Self, ModelError> {
-        Self::new(weights, InferenceScene::new(avatar, garment), descriptors, fps, options)
+        Self::new(
+            weights,
+            InferenceScene::new(avatar, garment),
+            descriptors,
+            fps,
+            options,
+        )
     }
 
     /// An engine for an explicit scene description.
@@ -201,7 +231,9 @@ impl InferenceEngine {
         options: InferenceOptions,
     ) -> Result<Self, ModelError> {
         if !(fps.is_finite() && fps > 0.0) {
-            return Err(ModelError::InvalidInput(format!("frame rate {fps} is not positive")));
+            return Err(ModelError::InvalidInput(format!(
+                "frame rate {fps} is not positive"
+            )));
         }
         weights.validate()?;
         let stream = DescriptorStream::new(scene.skeleton, descriptors, 1.0 / fps)?;
@@ -217,24 +249,45 @@ impl InferenceEngine {
             return Err(ModelError::ShapeMismatch {
                 what: "garment vertices (template, skin weights) vs the model".into(),
                 expected: weights.vertices,
-                found: if v != weights.vertices { v } else { scene.garment_skin.len() },
+                found: if v != weights.vertices {
+                    v
+                } else {
+                    scene.garment_skin.len()
+                },
             });
         }
         let joints_all = scene.skeleton.len();
-        for (what, skin) in std::iter::once(("garment", scene.garment_skin)).chain(scene.body.map(|(_, s)| ("body", s))) {
+        for (what, skin) in std::iter::once(("garment", scene.garment_skin))
+            .chain(scene.body.map(|(_, s)| ("body", s)))
+        {
             if let Some(j) = skin.max_joint().filter(|&j| j as usize >= joints_all) {
-                return Err(ModelError::ShapeMismatch { what: format!("{what} skin joint {j}; joints"), expected: joints_all, found: j as usize + 1 });
+                return Err(ModelError::ShapeMismatch {
+                    what: format!("{what} skin joint {j}; joints"),
+                    expected: joints_all,
+                    found: j as usize + 1,
+                });
             }
         }
         let (body_bind, body_skin) = match scene.body {
             Some((pos, skin)) if skin.len() == pos.len() => (flatten(pos), skin.clone()),
             Some((pos, skin)) => {
-                return Err(ModelError::ShapeMismatch { what: "body skin weights (one per vertex)".into(), expected: pos.len(), found: skin.len() });
+                return Err(ModelError::ShapeMismatch {
+                    what: "body skin weights (one per vertex)".into(),
+                    expected: pos.len(),
+                    found: skin.len(),
+                });
             }
             None => (Vec::new(), SkinWeights::default()),
         };
-        if !scene.template.iter().chain(scene.body.map_or(&[][..], |b| b.0)).all(|p| p.iter().all(|c| c.is_finite())) {
-            return Err(ModelError::InvalidInput("template or body has a non-finite vertex".into()));
+        if !scene
+            .template
+            .iter()
+            .chain(scene.body.map_or(&[][..], |b| b.0))
+            .all(|p| p.iter().all(|c| c.is_finite()))
+        {
+            return Err(ModelError::InvalidInput(
+                "template or body has a non-finite vertex".into(),
+            ));
         }
         let pool = match options.threads {
             1 => None,
@@ -246,15 +299,18 @@ impl InferenceEngine {
                     .map_err(|e| ModelError::ThreadPool(e.to_string()))?,
             ),
         };
-        let bufs = Buffers::new(&weights, joints_all);
+        let net = CompiledNet::new(weights, options.basis_precision, options.layer_precision);
+        let bufs = Buffers::new(&net, joints_all);
         let body_count = body_bind.len() / 3;
         Ok(Self {
-            hidden: vec![0.0; weights.latent],
+            hidden: vec![0.0; net.latent],
             hidden_is_zero: true,
             dynamic_skipped: false,
             template: flatten(scene.template),
             garment_skin: scene.garment_skin.clone(),
-            rest_from_world: SkinMatrixBuilder::new(scene.skeleton).rest_from_world().to_vec(),
+            rest_from_world: SkinMatrixBuilder::new(scene.skeleton)
+                .rest_from_world()
+                .to_vec(),
             body_bind,
             body_skin,
             garment: vec![Vec3::zeros(); v],
@@ -263,27 +319,33 @@ impl InferenceEngine {
             stream,
             pool,
             options,
-            weights,
+            net,
         })
     }
 
-    /// Replaces the weights (e.g. a snapshot from the trainer). The layout must describe the
-    /// same joints and vertices; the GRU state is kept when the encoder layout is unchanged.
+    /// Replaces the weights (e.g. a snapshot from the trainer), stored at the engine's
+    /// precisions. The layout must describe the same joints and vertices; the GRU state is kept
+    /// when the encoder layout is unchanged.
     pub fn set_weights(&mut self, weights: InferenceWeights) -> Result<(), ModelError> {
         weights.validate()?;
-        if weights.input_joints != self.weights.input_joints || weights.vertices != self.weights.vertices {
+        if weights.input_joints != self.net.input_joints || weights.vertices != self.net.vertices
+        {
             return Err(ModelError::ShapeMismatch {
                 what: "joints × vertices of the new weights".into(),
-                expected: self.weights.input_joints * self.weights.vertices,
+                expected: self.net.input_joints * self.net.vertices,
                 found: weights.input_joints * weights.vertices,
             });
         }
-        let same_layout = weights.kind == self.weights.kind && weights.latent == self.weights.latent;
+        let same_layout = weights.kind == self.net.kind && weights.latent == self.net.latent;
         let joints_all = self.bufs.garment_mats.len() / MATRIX_FLOATS;
-        self.bufs = Buffers::new(&weights, joints_all);
-        self.weights = weights;
+        self.net = CompiledNet::new(
+            weights,
+            self.options.basis_precision,
+            self.options.layer_precision,
+        );
+        self.bufs = Buffers::new(&self.net, joints_all);
         if !same_layout {
-            self.hidden = vec![0.0; self.weights.latent];
+            self.hidden = vec![0.0; self.net.latent];
             self.hidden_is_zero = true;
         }
         Ok(())
@@ -301,20 +363,40 @@ impl InferenceEngine {
     /// `w` (0 = static, 1 = trained, up to 2 exaggerates). Allocates nothing.
     pub fn step(&mut self, pose: &Pose, w: f32) -> Result<(), ModelError> {
         if !w.is_finite() {
-            return Err(ModelError::InvalidInput(format!("dynamic weight {w} is not finite")));
+            return Err(ModelError::InvalidInput(format!(
+                "dynamic weight {w} is not finite"
+            )));
         }
         self.stream.push(pose)?;
         self.encode(w);
         self.decode();
-        self.skin();
+        self.pose_garment();
+        self.pose_body();
+        Ok(())
+    }
+
+    /// Resets and steps through `poses` (consecutive frames at the engine's rate), leaving the
+    /// meshes of the last one: use it after a seek, feeding the window of poses before the
+    /// target frame so the GRU state is rebuilt.
+    pub fn replay(&mut self, poses: &[Pose], w: f32) -> Result<(), ModelError> {
+        self.reset();
+        for pose in poses {
+            self.step(pose, w)?;
+        }
         Ok(())
     }
 
     fn encode(&mut self, w: f32) {
-        let weights = &self.weights;
+        let weights = &self.net;
         let b = &mut self.bufs;
         if weights.kind != EncoderKind::Entangled {
-            relu_chain_into(&weights.static_layers, self.stream.static_desc(), &mut b.a, &mut b.b, &mut b.z_s);
+            relu_chain_into(
+                &weights.static_layers,
+                self.stream.static_desc(),
+                &mut b.a,
+                &mut b.b,
+                &mut b.z_s,
+            );
         }
         self.dynamic_skipped = false;
         if let Some(r) = &weights.recurrent {
@@ -328,13 +410,20 @@ impl InferenceEngine {
                 for k in 0..weights.input_joints {
                     let dk = &d[k * DYNAMIC_DIM..(k + 1) * DYNAMIC_DIM];
                     let x: &[f32] = if entangled {
-                        b.joint_in[..STATIC_DIM].copy_from_slice(&s[k * STATIC_DIM..(k + 1) * STATIC_DIM]);
+                        b.joint_in[..STATIC_DIM]
+                            .copy_from_slice(&s[k * STATIC_DIM..(k + 1) * STATIC_DIM]);
                         b.joint_in[STATIC_DIM..].copy_from_slice(dk);
                         &b.joint_in
                     } else {
                         dk
                     };
-                    relu_chain_into(&r.joint_layers, x, &mut b.joint_a, &mut b.joint_b, &mut b.joint_feat[k * jo..(k + 1) * jo]);
+                    relu_chain_into(
+                        &r.joint_layers,
+                        x,
+                        &mut b.joint_a,
+                        &mut b.joint_b,
+                        &mut b.joint_feat[k * jo..(k + 1) * jo],
+                    );
                 }
                 relu_chain_into(&r.layers, &b.joint_feat, &mut b.a, &mut b.b, &mut b.gru_in);
                 gru_step(&r.gru, &b.gru_in, &mut self.hidden, &mut b.gru);
@@ -356,57 +445,79 @@ impl InferenceEngine {
         }
     }
 
+    /// Decoder MLP: `z` -> basis coefficients `h`.
     fn decode(&mut self) {
         let b = &mut self.bufs;
-        let basis = &self.weights.basis;
-        let d = basis.d_in;
-        // Decoder MLP, ping-ponging between `a` and `b`; `h` is its output.
-        let layers = &self.weights.decoder_layers;
-        let mut in_a = None;
-        let mut width = b.z.len();
-        for l in layers {
-            match in_a {
-                None => l.forward_relu(&b.z, &mut b.a[..l.d_out]),
-                Some(true) => l.forward_relu(&b.a[..width], &mut b.b[..l.d_out]),
-                Some(false) => l.forward_relu(&b.b[..width], &mut b.a[..l.d_out]),
-            }
-            in_a = Some(!matches!(in_a, Some(true)));
-            width = l.d_out;
-        }
-        let h: &[f32] = match in_a {
-            None => &b.z,
-            Some(true) => &b.a[..d],
-            Some(false) => &b.b[..d],
+        relu_chain_into(&self.net.decoder_layers, &b.z, &mut b.a, &mut b.b, &mut b.h);
+    }
+
+    /// Basis product, template addition and garment skinning, fused per chunk of vertices.
+    fn pose_garment(&mut self) {
+        let pool = self
+            .pool
+            .as_ref()
+            .filter(|_| self.bufs.offsets.len() >= self.options.parallel_min_values);
+        let garment = &mut self.garment;
+        let b = &mut self.bufs;
+        write_matrices_3x4(
+            self.stream.world_from_joint(),
+            &self.rest_from_world,
+            &mut b.garment_mats,
+        );
+        let chunk = GarmentChunk {
+            basis: &self.net.basis,
+            h: &b.h,
+            template: &self.template,
+            skin: &self.garment_skin,
+            mats: &b.garment_mats,
         };
-        let offsets = &mut b.offsets;
-        match &self.pool {
-            Some(pool) if offsets.len() >= self.options.parallel_min_values => pool.install(|| {
-                offsets
-                    .par_chunks_mut(COLUMN_BLOCK)
+        let values = 3 * VERTEX_CHUNK;
+        match pool {
+            Some(pool) => pool.install(|| {
+                b.offsets
+                    .par_chunks_mut(values)
+                    .zip(b.rest.par_chunks_mut(values))
+                    .zip(garment.par_chunks_mut(VERTEX_CHUNK))
                     .enumerate()
-                    .for_each(|(c, y)| basis.forward_columns(h, c * COLUMN_BLOCK, y));
+                    .for_each(|(c, ((o, r), g))| chunk.run(c * VERTEX_CHUNK, o, r, g));
             }),
-            _ => {
-                for (c, y) in offsets.chunks_mut(COLUMN_BLOCK).enumerate() {
-                    basis.forward_columns(h, c * COLUMN_BLOCK, y);
+            None => {
+                let chunks = b
+                    .offsets
+                    .chunks_mut(values)
+                    .zip(b.rest.chunks_mut(values))
+                    .zip(garment.chunks_mut(VERTEX_CHUNK));
+                for (c, ((o, r), g)) in chunks.enumerate() {
+                    chunk.run(c * VERTEX_CHUNK, o, r, g);
                 }
             }
         }
-        for ((r, t), o) in b.rest.iter_mut().zip(&self.template).zip(offsets.iter()) {
-            *r = t + o;
-        }
     }
 
-    fn skin(&mut self) {
-        let world = self.stream.world_from_joint();
+    fn pose_body(&mut self) {
+        if !self.options.skin_body || self.body.is_empty() {
+            return;
+        }
         let b = &mut self.bufs;
-        write_matrices_3x4(world, &self.rest_from_world, &mut b.garment_mats);
-        let parallel = self.pool.as_ref().filter(|_| b.rest.len() >= self.options.parallel_min_values);
-        skin_maybe_parallel(parallel, &b.rest, &self.garment_skin, &b.garment_mats, &mut self.garment);
-        if self.options.skin_body && !self.body.is_empty() {
-            write_matrices_3x4(world, &self.stream.skeleton().joint_from_bind, &mut b.body_mats);
-            let parallel = self.pool.as_ref().filter(|_| self.body_bind.len() >= self.options.parallel_min_values);
-            skin_maybe_parallel(parallel, &self.body_bind, &self.body_skin, &b.body_mats, &mut self.body);
+        write_matrices_3x4(
+            self.stream.world_from_joint(),
+            &self.stream.skeleton().joint_from_bind,
+            &mut b.body_mats,
+        );
+        let (bind, skin, mats) = (&self.body_bind, &self.body_skin, &b.body_mats);
+        let pool = self
+            .pool
+            .as_ref()
+            .filter(|_| bind.len() >= self.options.parallel_min_values);
+        match pool {
+            Some(pool) => pool.install(|| {
+                bind.par_chunks(3 * VERTEX_CHUNK)
+                    .zip(skin.joints.par_chunks(VERTEX_CHUNK))
+                    .zip(skin.weights.par_chunks(VERTEX_CHUNK))
+                    .zip(self.body.par_chunks_mut(VERTEX_CHUNK))
+                    .for_each(|(((r, j), w), o)| skin_positions_into(r, j, w, mats, o));
+            }),
+            None => skin_positions_into(bind, &skin.joints, &skin.weights, mats, &mut self.body),
         }
     }
 
@@ -450,9 +561,31 @@ impl InferenceEngine {
         self.dynamic_skipped
     }
 
-    /// The weights in use.
-    pub fn weights(&self) -> &InferenceWeights {
-        &self.weights
+    /// Decoder output of the last frame: the basis coefficients (after ReLU; the basis rows
+    /// of its zeros were not read).
+    pub fn basis_input(&self) -> &[f32] {
+        &self.bufs.h
+    }
+
+    /// Storage precision of the basis actually in use (f32 when f16 was asked for but a weight
+    /// is out of the f16 range).
+    pub fn basis_precision(&self) -> Precision {
+        self.net.basis.precision()
+    }
+
+    /// Bytes of weight storage of the engine (basis and layers at their precisions).
+    pub fn weight_bytes(&self) -> usize {
+        self.net.weight_bytes()
+    }
+
+    /// Bytes of the stored basis.
+    pub fn basis_bytes(&self) -> usize {
+        self.net.basis.bytes()
+    }
+
+    /// The options the engine was built with.
+    pub fn options(&self) -> &InferenceOptions {
+        &self.options
     }
 
     /// Skeleton indices of the network's input joints.
@@ -466,16 +599,28 @@ impl InferenceEngine {
     }
 }
 
-fn skin_maybe_parallel(pool: Option<&rayon::ThreadPool>, rest: &[f32], skin: &SkinWeights, mats: &[f32], out: &mut [Vec3]) {
-    const CHUNK: usize = COLUMN_BLOCK / 3;
-    match pool {
-        Some(pool) => pool.install(|| {
-            rest.par_chunks(3 * CHUNK)
-                .zip(skin.joints.par_chunks(CHUNK))
-                .zip(skin.weights.par_chunks(CHUNK))
-                .zip(out.par_chunks_mut(CHUNK))
-                .for_each(|(((r, j), w), o)| skin_positions_into(r, j, w, mats, o));
-        }),
-        None => skin_positions_into(rest, &skin.joints, &skin.weights, mats, out),
+/// What every chunk of the fused garment pass reads.
+struct GarmentChunk<'a> {
+    basis: &'a Matrix,
+    h: &'a [f32],
+    template: &'a [f32],
+    skin: &'a SkinWeights,
+    mats: &'a [f32],
+}
+
+impl GarmentChunk<'_> {
+    /// Offsets, rest positions and posed positions of the vertices from `v0` on (as many as
+    /// `posed` holds; `offsets` and `rest` hold three values per vertex).
+    fn run(&self, v0: usize, offsets: &mut [f32], rest: &mut [f32], posed: &mut [Vec3]) {
+        let n = posed.len();
+        offsets.fill(0.0);
+        self.basis.accumulate(self.h, 3 * v0, offsets);
+        let template = self.template.get(3 * v0..3 * (v0 + n)).unwrap_or(&[]);
+        for ((r, t), o) in rest.iter_mut().zip(template).zip(offsets.iter()) {
+            *r = t + o;
+        }
+        let joints = self.skin.joints.get(v0..v0 + n).unwrap_or(&[]);
+        let weights = self.skin.weights.get(v0..v0 + n).unwrap_or(&[]);
+        skin_positions_into(rest, joints, weights, self.mats, posed);
     }
 }

@@ -6,19 +6,23 @@
 //! descriptors; [`network::ClothNet`] maps them to rest-space garment offsets;
 //! [`skinning::GarmentLbs`] adds the template and poses the garment with linear blend
 //! skinning. [`weights::InferenceWeights`] copies a trained network into plain matrices and
-//! [`inference::InferenceEngine`] runs it on raw poses with the GRU state carried over.
+//! [`inference::InferenceEngine`] runs it on raw poses with the GRU state carried over, on its
+//! own [`compiled::CompiledNet`] copy (f32 or f16 storage, SIMD [`kernels`]).
 
+pub mod compiled;
 pub mod descriptors;
 pub mod gru;
 pub mod inference;
+pub mod kernels;
 pub mod network;
 pub mod skinning;
 pub mod weights;
 
 pub use descriptors::{
-    DescriptorConfig, DescriptorExtractor, DescriptorStream, Descriptors, DYNAMIC_DIM, STATIC_DIM,
+    DYNAMIC_DIM, DescriptorConfig, DescriptorExtractor, DescriptorStream, Descriptors, STATIC_DIM,
 };
 pub use inference::{InferenceEngine, InferenceOptions};
+pub use kernels::Precision;
 pub use network::{ClothNet, ClothNetConfig, EncoderKind};
 pub use skinning::{GarmentLbs, SkinMatrixBuilder};
 pub use weights::InferenceWeights;

@@ -97,29 +97,47 @@ impl ClothNetConfig {
             .chain(&self.decoder_hidden)
             .chain(std::iter::once(&self.latent));
         if let Some(w) = widths.into_iter().find(|w| !(1..=MAX_WIDTH).contains(*w)) {
-            return Err(ModelError::InvalidConfig(format!("layer width {w} outside 1..={MAX_WIDTH}")));
+            return Err(ModelError::InvalidConfig(format!(
+                "layer width {w} outside 1..={MAX_WIDTH}"
+            )));
         }
         if self.encoder != EncoderKind::StaticOnly && self.joint_hidden.is_empty() {
-            return Err(ModelError::InvalidConfig("joint_hidden needs at least one layer".into()));
+            return Err(ModelError::InvalidConfig(
+                "joint_hidden needs at least one layer".into(),
+            ));
         }
         if !(self.init_std.is_finite() && self.init_std > 0.0) {
-            return Err(ModelError::InvalidConfig(format!("init_std {} is not positive", self.init_std)));
+            return Err(ModelError::InvalidConfig(format!(
+                "init_std {} is not positive",
+                self.init_std
+            )));
         }
         if !(self.basis_init_gain.is_finite() && self.basis_init_gain >= 0.0) {
-            return Err(ModelError::InvalidConfig(format!("basis_init_gain {} is negative", self.basis_init_gain)));
+            return Err(ModelError::InvalidConfig(format!(
+                "basis_init_gain {} is negative",
+                self.basis_init_gain
+            )));
         }
         Ok(())
     }
 
     /// Builds the network for `input_joints` joints and a garment of `vertices` vertices.
-    pub fn init(&self, input_joints: usize, vertices: usize, device: &Device) -> Result<ClothNet, ModelError> {
+    pub fn init(
+        &self,
+        input_joints: usize,
+        vertices: usize,
+        device: &Device,
+    ) -> Result<ClothNet, ModelError> {
         self.validate()?;
         if input_joints == 0 || vertices == 0 {
             return Err(ModelError::InvalidConfig(format!(
                 "network needs at least one input joint and one vertex (got {input_joints} joints, {vertices} vertices)"
             )));
         }
-        let fc = Initializer::Normal { mean: 0.0, std: self.init_std };
+        let fc = Initializer::Normal {
+            mean: 0.0,
+            std: self.init_std,
+        };
         let mlp = |d_in: usize, widths: &[usize], bias: bool| -> Mlp {
             let mut layers = Vec::with_capacity(widths.len());
             let mut d = d_in;
@@ -133,8 +151,16 @@ impl ClothNetConfig {
             let joint_mlp = mlp(joint_in, &self.joint_hidden, bias);
             let joint_out = self.joint_hidden.last().copied().unwrap_or(joint_in);
             let mlp = mlp(input_joints * joint_out, &self.dynamic_hidden, bias);
-            let gru_in = self.dynamic_hidden.last().copied().unwrap_or(input_joints * joint_out);
-            RecurrentEncoder { joint_mlp, mlp, gru: GruConfig::new(gru_in, self.latent, bias).init(device) }
+            let gru_in = self
+                .dynamic_hidden
+                .last()
+                .copied()
+                .unwrap_or(input_joints * joint_out);
+            RecurrentEncoder {
+                joint_mlp,
+                mlp,
+                gru: GruConfig::new(gru_in, self.latent, bias).init(device),
+            }
         };
         let mut static_widths = self.static_hidden.clone();
         static_widths.push(self.latent);
@@ -144,15 +170,24 @@ impl ClothNetConfig {
                 Some(recurrent(DYNAMIC_DIM, false)),
                 None,
             ),
-            EncoderKind::StaticOnly => (Some(mlp(input_joints * STATIC_DIM, &static_widths, true)), None, None),
+            EncoderKind::StaticOnly => (
+                Some(mlp(input_joints * STATIC_DIM, &static_widths, true)),
+                None,
+                None,
+            ),
             EncoderKind::Entangled => (None, None, Some(recurrent(STATIC_DIM + DYNAMIC_DIM, true))),
         };
         let decoder_mlp = mlp(self.latent, &self.decoder_hidden, true);
         let basis_in = self.decoder_hidden.last().copied().unwrap_or(self.latent);
         // Keras glorot_normal on a [basis_in, V, 3] kernel: fan_in = basis_in * V, fan_out = basis_in * 3.
-        let basis_std = self.basis_init_gain * (2.0 / (basis_in as f64 * (vertices as f64 + 3.0))).sqrt();
+        let basis_std =
+            self.basis_init_gain * (2.0 / (basis_in as f64 * (vertices as f64 + 3.0))).sqrt();
         let basis = Linear {
-            weight: Initializer::Normal { mean: 0.0, std: basis_std.max(f64::MIN_POSITIVE) }.init_with(
+            weight: Initializer::Normal {
+                mean: 0.0,
+                std: basis_std.max(f64::MIN_POSITIVE),
+            }
+            .init_with(
                 [basis_in, vertices * 3],
                 Some(basis_in),
                 Some(vertices * 3),
@@ -164,7 +199,10 @@ impl ClothNetConfig {
             static_encoder,
             dynamic_encoder,
             entangled_encoder,
-            decoder: Decoder { mlp: decoder_mlp, basis },
+            decoder: Decoder {
+                mlp: decoder_mlp,
+                basis,
+            },
             input_joints,
             vertices,
             latent: self.latent,
@@ -268,7 +306,11 @@ impl ClothNet {
 
     /// Dynamic code `z_D` `[B, T, latent]` of dynamic descriptors `[B, T, J, 12]` with the GRU
     /// started from `state` (`[B, latent]`, zero when `None`); `None` without a dynamic branch.
-    pub fn encode_dynamic(&self, dynamic_desc: Tensor<4>, state: Option<Tensor<2>>) -> Option<Tensor<3>> {
+    pub fn encode_dynamic(
+        &self,
+        dynamic_desc: Tensor<4>,
+        state: Option<Tensor<2>>,
+    ) -> Option<Tensor<3>> {
         Some(self.dynamic_encoder.as_ref()?.forward(dynamic_desc, state))
     }
 
@@ -276,14 +318,21 @@ impl ClothNet {
     ///
     /// Disentangled: `z_S + w z_D` (`z_D` skipped when `dynamic_desc` is `None` or `w == 0`);
     /// static-only: `z_S`; entangled: the single encoder's code (zero dynamics when `None`).
-    pub fn latent_code(&self, static_desc: Tensor<4>, dynamic_desc: Option<Tensor<4>>, w: f32) -> Tensor<3> {
+    pub fn latent_code(
+        &self,
+        static_desc: Tensor<4>,
+        dynamic_desc: Option<Tensor<4>>,
+        w: f32,
+    ) -> Tensor<3> {
         if let Some(enc) = &self.entangled_encoder {
             let dynamic = dynamic_desc.unwrap_or_else(|| zeros_like_dynamic(&static_desc));
             return enc.forward(Tensor::cat(vec![static_desc, dynamic], 3), None);
         }
         let [b, t, _, _] = static_desc.dims();
         let device = static_desc.device();
-        let z_s = self.encode_static(static_desc).unwrap_or_else(|| Tensor::zeros([b, t, self.latent], &device));
+        let z_s = self
+            .encode_static(static_desc)
+            .unwrap_or_else(|| Tensor::zeros([b, t, self.latent], &device));
         match (dynamic_desc, &self.dynamic_encoder) {
             (Some(d), Some(enc)) if w != 0.0 => z_s + enc.forward(d, None).mul_scalar(w),
             _ => z_s,
@@ -294,24 +343,41 @@ impl ClothNet {
     pub fn decode(&self, z: Tensor<3>) -> Tensor<4> {
         let [b, t, _] = z.dims();
         let h = self.decoder.mlp.forward(z);
-        self.decoder.basis.forward(h).reshape([b, t, self.vertices, 3])
+        self.decoder
+            .basis
+            .forward(h)
+            .reshape([b, t, self.vertices, 3])
     }
 
     /// Offsets `[B, T, V, 3]` for every frame of the window: static descriptors `[B, T, J, 9]`,
     /// optional dynamic descriptors `[B, T, J, 12]`, dynamic weight `w` (1 = trained).
-    pub fn forward(&self, static_desc: Tensor<4>, dynamic_desc: Option<Tensor<4>>, w: f32) -> Tensor<4> {
+    pub fn forward(
+        &self,
+        static_desc: Tensor<4>,
+        dynamic_desc: Option<Tensor<4>>,
+        w: f32,
+    ) -> Tensor<4> {
         self.decode(self.latent_code(static_desc, dynamic_desc, w))
     }
 
     /// Codes of the last `last` frames (1..=T) for motion augmentation: `(z_S, Some(z_D))` for
     /// the disentangled variant (shuffle / detach `z_D`, then [`ClothNet::decode`]
     /// `z_S + w z_D`), `(z_S, None)` when static-only, `(z, None)` when entangled. Each `[B, last, latent]`.
-    pub fn encode_last(&self, static_desc: Tensor<4>, dynamic_desc: Option<Tensor<4>>, last: usize) -> (Tensor<3>, Option<Tensor<3>>) {
+    pub fn encode_last(
+        &self,
+        static_desc: Tensor<4>,
+        dynamic_desc: Option<Tensor<4>>,
+        last: usize,
+    ) -> (Tensor<3>, Option<Tensor<3>>) {
         let t = static_desc.dims()[1];
         let last = last.clamp(1, t.max(1));
         let start = t - last;
         if self.entangled_encoder.is_some() {
-            return (self.latent_code(static_desc, dynamic_desc, 1.0).narrow(1, start, last), None);
+            return (
+                self.latent_code(static_desc, dynamic_desc, 1.0)
+                    .narrow(1, start, last),
+                None,
+            );
         }
         let z_s = self.latent_code(static_desc.narrow(1, start, last), None, 0.0);
         let z_d = match (dynamic_desc, &self.dynamic_encoder) {
@@ -323,7 +389,13 @@ impl ClothNet {
 
     /// Offsets `[B, last, V, 3]` of the last `last` frames only (1..=T): the GRU runs over the
     /// whole window, the static encoder and the decoder over the last frames (training takes 3).
-    pub fn forward_last(&self, static_desc: Tensor<4>, dynamic_desc: Option<Tensor<4>>, w: f32, last: usize) -> Tensor<4> {
+    pub fn forward_last(
+        &self,
+        static_desc: Tensor<4>,
+        dynamic_desc: Option<Tensor<4>>,
+        w: f32,
+        last: usize,
+    ) -> Tensor<4> {
         let t = static_desc.dims()[1];
         let last = last.clamp(1, t.max(1));
         let start = t - last;
@@ -367,9 +439,26 @@ mod tests {
     #[test]
     fn config_validation_and_toml_round_trip() {
         assert!(ClothNetConfig::default().validate().is_ok());
-        assert!(ClothNetConfig { latent: 0, ..Default::default() }.validate().is_err());
-        assert!(ClothNetConfig { init_std: f64::NAN, ..Default::default() }.validate().is_err());
-        let c = ClothNetConfig { encoder: EncoderKind::Entangled, ..small() };
+        assert!(
+            ClothNetConfig {
+                latent: 0,
+                ..Default::default()
+            }
+            .validate()
+            .is_err()
+        );
+        assert!(
+            ClothNetConfig {
+                init_std: f64::NAN,
+                ..Default::default()
+            }
+            .validate()
+            .is_err()
+        );
+        let c = ClothNetConfig {
+            encoder: EncoderKind::Entangled,
+            ..small()
+        };
         let back: ClothNetConfig = toml::from_str(&toml::to_string(&c).unwrap()).unwrap();
         assert_eq!(back, c);
         assert!(c.init(0, 5, &Device::flex()).is_err());
@@ -381,17 +470,44 @@ mod tests {
         let net = small().init(3, 5, &device).unwrap();
         assert_eq!(net.kind(), EncoderKind::Disentangled);
         let dynamic = net.dynamic_encoder.as_ref().unwrap();
-        assert!(dynamic.joint_mlp.layers.iter().chain(&dynamic.mlp.layers).all(|l| l.bias.is_none()));
+        assert!(
+            dynamic
+                .joint_mlp
+                .layers
+                .iter()
+                .chain(&dynamic.mlp.layers)
+                .all(|l| l.bias.is_none())
+        );
         assert!(dynamic.gru.update_gate.input_transform.bias.is_none());
         assert!(net.decoder.basis.bias.is_none());
-        assert!(net.static_encoder.as_ref().unwrap().layers.iter().all(|l| l.bias.is_some()));
+        assert!(
+            net.static_encoder
+                .as_ref()
+                .unwrap()
+                .layers
+                .iter()
+                .all(|l| l.bias.is_some())
+        );
         let s = Tensor::<4>::ones([2, 4, 3, STATIC_DIM], &device);
         let d = Tensor::<4>::ones([2, 4, 3, DYNAMIC_DIM], &device);
-        assert_eq!(net.forward(s.clone(), Some(d.clone()), 1.0).dims(), [2, 4, 5, 3]);
+        assert_eq!(
+            net.forward(s.clone(), Some(d.clone()), 1.0).dims(),
+            [2, 4, 5, 3]
+        );
         assert_eq!(net.forward_last(s, Some(d), 1.0, 3).dims(), [2, 3, 5, 3]);
-        let st = ClothNetConfig { encoder: EncoderKind::StaticOnly, ..small() }.init(3, 5, &device).unwrap();
+        let st = ClothNetConfig {
+            encoder: EncoderKind::StaticOnly,
+            ..small()
+        }
+        .init(3, 5, &device)
+        .unwrap();
         assert!(!st.has_dynamic_branch());
-        let en = ClothNetConfig { encoder: EncoderKind::Entangled, ..small() }.init(3, 5, &device).unwrap();
+        let en = ClothNetConfig {
+            encoder: EncoderKind::Entangled,
+            ..small()
+        }
+        .init(3, 5, &device)
+        .unwrap();
         assert!(en.static_encoder.is_none());
         let s = Tensor::<4>::ones([1, 2, 3, STATIC_DIM], &device);
         assert_eq!(en.forward(s, None, 1.0).dims(), [1, 2, 5, 3]);

@@ -20,7 +20,11 @@ pub const MATRIX_FLOATS: usize = 12;
 
 /// Writes `left[j] * right[j]` for every joint as 3x4 row-major blocks into `out`.
 pub fn write_matrices_3x4(left: &[Mat4], right: &[Mat4], out: &mut [f32]) {
-    for ((l, r), o) in left.iter().zip(right).zip(out.chunks_exact_mut(MATRIX_FLOATS)) {
+    for ((l, r), o) in left
+        .iter()
+        .zip(right)
+        .zip(out.chunks_exact_mut(MATRIX_FLOATS))
+    {
         let m = l * r;
         for row in 0..3 {
             for col in 0..4 {
@@ -46,7 +50,11 @@ impl SkinMatrixBuilder {
             .iter()
             .map(|m| m.try_inverse().unwrap_or_else(Mat4::identity))
             .collect();
-        Self { skeleton: skeleton.clone(), rest_from_world, world: vec![Mat4::identity(); skeleton.len()] }
+        Self {
+            skeleton: skeleton.clone(),
+            rest_from_world,
+            world: vec![Mat4::identity(); skeleton.len()],
+        }
     }
 
     /// Number of skeleton joints (matrices per pose).
@@ -63,10 +71,18 @@ impl SkinMatrixBuilder {
     pub fn write(&mut self, pose: &Pose, out: &mut [f32]) -> Result<(), ModelError> {
         let n = self.skeleton.len();
         if pose.rotations.len() != n {
-            return Err(ModelError::ShapeMismatch { what: "pose rotations".into(), expected: n, found: pose.rotations.len() });
+            return Err(ModelError::ShapeMismatch {
+                what: "pose rotations".into(),
+                expected: n,
+                found: pose.rotations.len(),
+            });
         }
         if out.len() != n * MATRIX_FLOATS {
-            return Err(ModelError::ShapeMismatch { what: "matrix output floats".into(), expected: n * MATRIX_FLOATS, found: out.len() });
+            return Err(ModelError::ShapeMismatch {
+                what: "matrix output floats".into(),
+                expected: n * MATRIX_FLOATS,
+                found: out.len(),
+            });
         }
         world_from_joint_into(&self.skeleton, pose, &mut self.world);
         write_matrices_3x4(&self.world, &self.rest_from_world, out);
@@ -96,7 +112,12 @@ pub fn skin_positions_into(
     out: &mut [Vec3],
 ) {
     let joints = matrices.len() / MATRIX_FLOATS;
-    for (((p, js), ws), o) in rest.chunks_exact(3).zip(joint_index).zip(weights).zip(out.iter_mut()) {
+    for (((p, js), ws), o) in rest
+        .chunks_exact(3)
+        .zip(joint_index)
+        .zip(weights)
+        .zip(out.iter_mut())
+    {
         let mut m = [0.0f32; MATRIX_FLOATS];
         for (&j, &w) in js.iter().zip(ws) {
             let j = j as usize;
@@ -128,13 +149,24 @@ pub struct GarmentLbs {
 
 impl GarmentLbs {
     /// From a template (rest space) and its skin weights over `joint_count` skeleton joints.
-    pub fn new(template: &[Vec3], skin: &SkinWeights, joint_count: usize, device: &Device) -> Result<Self, ModelError> {
+    pub fn new(
+        template: &[Vec3],
+        skin: &SkinWeights,
+        joint_count: usize,
+        device: &Device,
+    ) -> Result<Self, ModelError> {
         let v = template.len();
         if skin.len() != v {
-            return Err(ModelError::ShapeMismatch { what: "garment skin weights (one per vertex)".into(), expected: v, found: skin.len() });
+            return Err(ModelError::ShapeMismatch {
+                what: "garment skin weights (one per vertex)".into(),
+                expected: v,
+                found: skin.len(),
+            });
         }
         if v == 0 || joint_count == 0 {
-            return Err(ModelError::InvalidInput("garment skinning needs vertices and joints".into()));
+            return Err(ModelError::InvalidInput(
+                "garment skinning needs vertices and joints".into(),
+            ));
         }
         if let Some(j) = skin.max_joint().filter(|&j| j as usize >= joint_count) {
             return Err(ModelError::ShapeMismatch {
@@ -144,7 +176,9 @@ impl GarmentLbs {
             });
         }
         if !template.iter().all(|p| p.iter().all(|c| c.is_finite())) {
-            return Err(ModelError::InvalidInput("garment template has a non-finite vertex".into()));
+            return Err(ModelError::InvalidInput(
+                "garment template has a non-finite vertex".into(),
+            ));
         }
         let flat: Vec<f32> = template.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
         // Unused slots (weight 0) may hold any index: clamp them into range.
@@ -152,7 +186,9 @@ impl GarmentLbs {
             .joints
             .iter()
             .zip(&skin.weights)
-            .flat_map(|(js, ws)| (0..MAX_INFLUENCES).map(move |k| if ws[k] != 0.0 { js[k] as i64 } else { 0 }))
+            .flat_map(|(js, ws)| {
+                (0..MAX_INFLUENCES).map(move |k| if ws[k] != 0.0 { js[k] as i64 } else { 0 })
+            })
             .collect();
         let w: Vec<f32> = skin.weights.iter().flatten().copied().collect();
         Ok(Self {
@@ -165,7 +201,11 @@ impl GarmentLbs {
     }
 
     /// From a garment whose weights refer to a skeleton of `joint_count` joints.
-    pub fn from_garment(garment: &Garment, joint_count: usize, device: &Device) -> Result<Self, ModelError> {
+    pub fn from_garment(
+        garment: &Garment,
+        joint_count: usize,
+        device: &Device,
+    ) -> Result<Self, ModelError> {
         Self::new(&garment.mesh.positions, &garment.skin, joint_count, device)
     }
 
@@ -198,7 +238,11 @@ impl GarmentLbs {
             .mul(self.weights.clone().reshape([1, 1, v, MAX_INFLUENCES, 1]))
             .sum_dim(3)
             .reshape([b, t, v, 3, 4]);
-        let linear = blended.clone().narrow(4, 0, 3).mul(rest.reshape([b, t, v, 1, 3])).sum_dim(4);
+        let linear = blended
+            .clone()
+            .narrow(4, 0, 3)
+            .mul(rest.reshape([b, t, v, 1, 3]))
+            .sum_dim(4);
         (linear + blended.narrow(4, 3, 1)).reshape([b, t, v, 3])
     }
 
@@ -217,17 +261,33 @@ mod tests {
     fn two_joints() -> Skeleton {
         let rest = vec![
             JointTransform::default(),
-            JointTransform { translation: Vec3::new(0.0, 0.5, 0.0), ..Default::default() },
+            JointTransform {
+                translation: Vec3::new(0.0, 0.5, 0.0),
+                ..Default::default()
+            },
         ];
-        Skeleton::new(vec!["a".into(), "b".into()], vec![None, Some(0)], rest, vec![Mat4::identity(); 2], vec![Mat4::identity(); 2])
-            .unwrap()
+        Skeleton::new(
+            vec!["a".into(), "b".into()],
+            vec![None, Some(0)],
+            rest,
+            vec![Mat4::identity(); 2],
+            vec![Mat4::identity(); 2],
+        )
+        .unwrap()
     }
 
     #[test]
     fn tensor_and_slice_skinning_agree_with_scene_convention() {
         let sk = two_joints();
-        let (skin, _) = SkinWeights::from_influences(vec![vec![(0, 1.0)], vec![(0, 0.3), (1, 0.7)], vec![(1, 1.0)]], 0);
-        let template = vec![Vec3::new(0.1, 0.0, 0.0), Vec3::new(0.0, 0.5, 0.1), Vec3::new(0.2, 0.9, -0.1)];
+        let (skin, _) = SkinWeights::from_influences(
+            vec![vec![(0, 1.0)], vec![(0, 0.3), (1, 0.7)], vec![(1, 1.0)]],
+            0,
+        );
+        let template = vec![
+            Vec3::new(0.1, 0.0, 0.0),
+            Vec3::new(0.0, 0.5, 0.1),
+            Vec3::new(0.2, 0.9, -0.1),
+        ];
         let mut pose = sk.rest_pose();
         pose.rotations[1] = Quat::from_euler_angles(0.4, 0.1, -0.7);
         pose.root_translation = Vec3::new(0.0, 1.0, 0.5);
@@ -236,7 +296,11 @@ mod tests {
         builder.write(&pose, &mut mats).unwrap();
         // Reference: the generic LBS of the geometry layer with the same matrices.
         let world = sk.world_from_joint(&pose);
-        let full: Vec<Mat4> = world.iter().zip(builder.rest_from_world()).map(|(w, r)| w * r).collect();
+        let full: Vec<Mat4> = world
+            .iter()
+            .zip(builder.rest_from_world())
+            .map(|(w, r)| w * r)
+            .collect();
         let expected = crate::geometry::linear_blend_skin(&template, &skin, &full);
         let flat: Vec<f32> = template.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
         let mut out = vec![Vec3::zeros(); 3];
@@ -244,13 +308,21 @@ mod tests {
         let device = Device::flex();
         let lbs = GarmentLbs::new(&template, &skin, 2, &device).unwrap();
         let offsets = Tensor::<4>::zeros([1, 1, 3, 3], &device);
-        let m = Tensor::<4>::from_data(TensorData::new(mats.clone(), [1, 1, 2, MATRIX_FLOATS]), &device);
+        let m = Tensor::<4>::from_data(
+            TensorData::new(mats.clone(), [1, 1, 2, MATRIX_FLOATS]),
+            &device,
+        );
         let posed: Vec<f32> = lbs.pose(offsets, m).try_into_vec_as::<f32>().unwrap();
         for (v, e) in expected.iter().enumerate() {
             assert!((out[v] - e).norm() < 1e-5);
-            assert!((Vec3::new(posed[3 * v], posed[3 * v + 1], posed[3 * v + 2]) - e).norm() < 1e-5);
+            assert!(
+                (Vec3::new(posed[3 * v], posed[3 * v + 1], posed[3 * v + 2]) - e).norm() < 1e-5
+            );
         }
-        assert!((expected[2] - template[2]).norm() > 0.1, "the pose moves the garment");
+        assert!(
+            (expected[2] - template[2]).norm() > 0.1,
+            "the pose moves the garment"
+        );
         assert!(GarmentLbs::new(&template, &skin, 1, &device).is_err());
     }
 }

@@ -27,7 +27,11 @@ pub struct DenseWeights {
 }
 
 fn read<const D: usize>(t: &Tensor<D>, what: &str) -> Result<Vec<f32>, ModelError> {
-    t.try_to_vec_as::<f32>().map_err(|e| ModelError::TensorRead { what: what.into(), reason: e.to_string() })
+    t.try_to_vec_as::<f32>()
+        .map_err(|e| ModelError::TensorRead {
+            what: what.into(),
+            reason: e.to_string(),
+        })
 }
 
 impl DenseWeights {
@@ -40,7 +44,12 @@ impl DenseWeights {
             Some(b) => Some(read(&b.val(), what)?),
             None => None,
         };
-        let out = Self { d_in, d_out, weight, bias };
+        let out = Self {
+            d_in,
+            d_out,
+            weight,
+            bias,
+        };
         out.validate(what)?;
         Ok(out)
     }
@@ -48,15 +57,30 @@ impl DenseWeights {
     /// Checks sizes and finiteness.
     pub fn validate(&self, what: &str) -> Result<(), ModelError> {
         if self.weight.len() != self.d_in * self.d_out {
-            return Err(ModelError::ShapeMismatch { what: format!("{what} weights"), expected: self.d_in * self.d_out, found: self.weight.len() });
+            return Err(ModelError::ShapeMismatch {
+                what: format!("{what} weights"),
+                expected: self.d_in * self.d_out,
+                found: self.weight.len(),
+            });
         }
-        if let Some(b) = &self.bias {
-            if b.len() != self.d_out {
-                return Err(ModelError::ShapeMismatch { what: format!("{what} bias"), expected: self.d_out, found: b.len() });
-            }
+        if let Some(b) = &self.bias
+            && b.len() != self.d_out
+        {
+            return Err(ModelError::ShapeMismatch {
+                what: format!("{what} bias"),
+                expected: self.d_out,
+                found: b.len(),
+            });
         }
-        if !self.weight.iter().chain(self.bias.iter().flatten()).all(|v| v.is_finite()) {
-            return Err(ModelError::InvalidInput(format!("{what} has non-finite weights")));
+        if !self
+            .weight
+            .iter()
+            .chain(self.bias.iter().flatten())
+            .all(|v| v.is_finite())
+        {
+            return Err(ModelError::InvalidInput(format!(
+                "{what} has non-finite weights"
+            )));
         }
         Ok(())
     }
@@ -105,17 +129,41 @@ impl DenseWeights {
     }
 }
 
-/// GRU weights with the three gates side by side: columns `[update | reset | new]`.
+/// A fully connected layer `y = x W + b` as [`super::gru::gru_step`] evaluates it: the plain
+/// f32 [`DenseWeights`] here, or the inference engine's [`super::compiled::Dense`] (f32 or f16
+/// storage, SIMD kernels).
+pub trait LinearLayer {
+    /// Columns `[col0, col0 + y.len())` of `x W + b` into `y`.
+    fn forward_columns(&self, x: &[f32], col0: usize, y: &mut [f32]);
+
+    /// `y = x W + b` over all columns.
+    fn forward(&self, x: &[f32], y: &mut [f32]) {
+        self.forward_columns(x, 0, y);
+    }
+}
+
+impl LinearLayer for DenseWeights {
+    fn forward_columns(&self, x: &[f32], col0: usize, y: &mut [f32]) {
+        DenseWeights::forward_columns(self, x, col0, y);
+    }
+
+    fn forward(&self, x: &[f32], y: &mut [f32]) {
+        DenseWeights::forward(self, x, y);
+    }
+}
+
+/// GRU weights with the three gates side by side: columns `[update | reset | new]`. The layer
+/// type `L` is [`DenseWeights`] except inside the inference engine.
 #[derive(Clone, Debug, PartialEq)]
-pub struct GruWeights {
+pub struct GruWeights<L = DenseWeights> {
     /// Input width.
     pub d_in: usize,
     /// Hidden width `H`.
     pub d_hidden: usize,
     /// Input transform `[d_in, 3H]` with optional bias `[3H]`.
-    pub input: DenseWeights,
+    pub input: L,
     /// Hidden transform `[H, 3H]` with optional bias `[3H]`.
-    pub hidden: DenseWeights,
+    pub hidden: L,
     /// Reset gate applied after the hidden product (burn's default, PyTorch and Keras v2 style).
     pub reset_after: bool,
     /// Optional clipping of the state to `[-clip, clip]`.
@@ -131,11 +179,35 @@ fn concat_gates(gates: [DenseWeights; 3]) -> DenseWeights {
         }
     }
     let bias = if gates.iter().all(|g| g.bias.is_some()) {
-        Some(gates.iter().flat_map(|g| g.bias.iter().flatten().copied()).collect())
+        Some(
+            gates
+                .iter()
+                .flat_map(|g| g.bias.iter().flatten().copied())
+                .collect(),
+        )
     } else {
         None
     };
-    DenseWeights { d_in, d_out: 3 * h, weight, bias }
+    DenseWeights {
+        d_in,
+        d_out: 3 * h,
+        weight,
+        bias,
+    }
+}
+
+impl<L> GruWeights<L> {
+    /// The same GRU with its two transforms converted by `f` (input first).
+    pub fn map_layers<M>(self, mut f: impl FnMut(L) -> M) -> GruWeights<M> {
+        GruWeights {
+            d_in: self.d_in,
+            d_hidden: self.d_hidden,
+            input: f(self.input),
+            hidden: f(self.hidden),
+            reset_after: self.reset_after,
+            clip: self.clip,
+        }
+    }
 }
 
 impl GruWeights {
@@ -147,17 +219,28 @@ impl GruWeights {
         let mut input = Vec::with_capacity(3);
         let mut hidden = Vec::with_capacity(3);
         for (g, n) in gates.iter().zip(names) {
-            input.push(DenseWeights::from_linear(&g.input_transform, &format!("{what} {n} gate input"))?);
-            hidden.push(DenseWeights::from_linear(&g.hidden_transform, &format!("{what} {n} gate hidden"))?);
+            input.push(DenseWeights::from_linear(
+                &g.input_transform,
+                &format!("{what} {n} gate input"),
+            )?);
+            hidden.push(DenseWeights::from_linear(
+                &g.hidden_transform,
+                &format!("{what} {n} gate hidden"),
+            )?);
         }
         let to_array = |v: Vec<DenseWeights>| -> Result<[DenseWeights; 3], ModelError> {
-            v.try_into().map_err(|_| ModelError::InvalidConfig(format!("{what}: GRU needs three gates")))
+            v.try_into()
+                .map_err(|_| ModelError::InvalidConfig(format!("{what}: GRU needs three gates")))
         };
         let (input, hidden) = (to_array(input)?, to_array(hidden)?);
         let (d_in, h) = (input[0].d_in, gru.d_hidden);
         for d in input.iter().chain(&hidden) {
             if d.d_out != h || (d.d_in != d_in && d.d_in != h) {
-                return Err(ModelError::ShapeMismatch { what: format!("{what} gate width"), expected: h, found: d.d_out });
+                return Err(ModelError::ShapeMismatch {
+                    what: format!("{what} gate width"),
+                    expected: h,
+                    found: d.d_out,
+                });
             }
         }
         let out = Self {
@@ -177,8 +260,16 @@ impl GruWeights {
         self.input.validate(&format!("{what} input"))?;
         self.hidden.validate(&format!("{what} hidden"))?;
         let h3 = 3 * self.d_hidden;
-        if self.input.d_in != self.d_in || self.input.d_out != h3 || self.hidden.d_in != self.d_hidden || self.hidden.d_out != h3 {
-            return Err(ModelError::ShapeMismatch { what: format!("{what} GRU gate matrices"), expected: h3, found: self.input.d_out });
+        if self.input.d_in != self.d_in
+            || self.input.d_out != h3
+            || self.hidden.d_in != self.d_hidden
+            || self.hidden.d_out != h3
+        {
+            return Err(ModelError::ShapeMismatch {
+                what: format!("{what} GRU gate matrices"),
+                expected: h3,
+                found: self.input.d_out,
+            });
         }
         Ok(())
     }
@@ -206,12 +297,20 @@ impl RecurrentWeights {
 
     /// True when no layer has a bias (zero input and state then give a zero code).
     pub fn is_bias_free(&self) -> bool {
-        self.joint_layers.iter().chain(&self.layers).chain([&self.gru.input, &self.gru.hidden]).all(|l| l.bias.is_none())
+        self.joint_layers
+            .iter()
+            .chain(&self.layers)
+            .chain([&self.gru.input, &self.gru.hidden])
+            .all(|l| l.bias.is_none())
     }
 }
 
 fn dense_layers(mlp: &Mlp, what: &str) -> Result<Vec<DenseWeights>, ModelError> {
-    mlp.layers.iter().enumerate().map(|(i, l)| DenseWeights::from_linear(l, &format!("{what} layer {i}"))).collect()
+    mlp.layers
+        .iter()
+        .enumerate()
+        .map(|(i, l)| DenseWeights::from_linear(l, &format!("{what} layer {i}")))
+        .collect()
 }
 
 /// All weights of a [`ClothNet`] as plain matrices.
@@ -265,32 +364,53 @@ impl InferenceWeights {
     /// Checks that consecutive layers fit together and match `J`, `V` and the latent size.
     pub fn validate(&self) -> Result<(), ModelError> {
         let mismatch = |what: &str, expected: usize, found: usize| {
-            Err(ModelError::ShapeMismatch { what: what.to_string(), expected, found })
+            Err(ModelError::ShapeMismatch {
+                what: what.to_string(),
+                expected,
+                found,
+            })
         };
-        let chain = |layers: &[DenseWeights], d_in: usize, what: &str| -> Result<usize, ModelError> {
-            let mut d = d_in;
-            for (i, l) in layers.iter().enumerate() {
-                l.validate(&format!("{what} layer {i}"))?;
-                if l.d_in != d {
-                    return Err(ModelError::ShapeMismatch { what: format!("{what} layer {i} input width"), expected: d, found: l.d_in });
+        let chain =
+            |layers: &[DenseWeights], d_in: usize, what: &str| -> Result<usize, ModelError> {
+                let mut d = d_in;
+                for (i, l) in layers.iter().enumerate() {
+                    l.validate(&format!("{what} layer {i}"))?;
+                    if l.d_in != d {
+                        return Err(ModelError::ShapeMismatch {
+                            what: format!("{what} layer {i} input width"),
+                            expected: d,
+                            found: l.d_in,
+                        });
+                    }
+                    d = l.d_out;
                 }
-                d = l.d_out;
-            }
-            Ok(d)
-        };
+                Ok(d)
+            };
         match (self.kind, &self.recurrent) {
-            (EncoderKind::StaticOnly, Some(_)) => return mismatch("recurrent encoders of a static-only model", 0, 1),
-            (EncoderKind::Disentangled | EncoderKind::Entangled, None) => return mismatch("recurrent encoders", 1, 0),
+            (EncoderKind::StaticOnly, Some(_)) => {
+                return mismatch("recurrent encoders of a static-only model", 0, 1);
+            }
+            (EncoderKind::Disentangled | EncoderKind::Entangled, None) => {
+                return mismatch("recurrent encoders", 1, 0);
+            }
             _ => {}
         }
         if self.kind != EncoderKind::Entangled {
-            let d = chain(&self.static_layers, self.input_joints * STATIC_DIM, "static encoder")?;
+            let d = chain(
+                &self.static_layers,
+                self.input_joints * STATIC_DIM,
+                "static encoder",
+            )?;
             if d != self.latent {
                 return mismatch("static encoder output width", self.latent, d);
             }
         }
         if let Some(r) = &self.recurrent {
-            let joint_in = if self.kind == EncoderKind::Entangled { STATIC_DIM + DYNAMIC_DIM } else { DYNAMIC_DIM };
+            let joint_in = if self.kind == EncoderKind::Entangled {
+                STATIC_DIM + DYNAMIC_DIM
+            } else {
+                DYNAMIC_DIM
+            };
             let jd = chain(&r.joint_layers, joint_in, "joint encoder")?;
             let d = chain(&r.layers, self.input_joints * jd, "recurrent encoder")?;
             r.gru.validate("GRU")?;
@@ -301,7 +421,9 @@ impl InferenceWeights {
                 return mismatch("GRU state width", self.latent, r.gru.d_hidden);
             }
             if self.kind == EncoderKind::Disentangled && !r.is_bias_free() {
-                return Err(ModelError::InvalidConfig("the dynamic encoder must have no bias".into()));
+                return Err(ModelError::InvalidConfig(
+                    "the dynamic encoder must have no bias".into(),
+                ));
             }
         }
         let d = chain(&self.decoder_layers, self.latent, "decoder")?;
@@ -310,7 +432,11 @@ impl InferenceWeights {
             return mismatch("basis input width", d, self.basis.d_in);
         }
         if self.basis.d_out != self.vertices * 3 || self.basis.bias.is_some() {
-            return mismatch("basis outputs (3 per vertex, no bias)", self.vertices * 3, self.basis.d_out);
+            return mismatch(
+                "basis outputs (3 per vertex, no bias)",
+                self.vertices * 3,
+                self.basis.d_out,
+            );
         }
         Ok(())
     }
@@ -318,16 +444,30 @@ impl InferenceWeights {
     /// Total number of scalar parameters.
     pub fn parameter_count(&self) -> usize {
         let dense = |l: &DenseWeights| l.weight.len() + l.bias.as_ref().map_or(0, Vec::len);
-        let mut n: usize = self.static_layers.iter().chain(&self.decoder_layers).chain([&self.basis]).map(dense).sum();
+        let mut n: usize = self
+            .static_layers
+            .iter()
+            .chain(&self.decoder_layers)
+            .chain([&self.basis])
+            .map(dense)
+            .sum();
         if let Some(r) = &self.recurrent {
-            n += r.joint_layers.iter().chain(&r.layers).chain([&r.gru.input, &r.gru.hidden]).map(dense).sum::<usize>();
+            n += r
+                .joint_layers
+                .iter()
+                .chain(&r.layers)
+                .chain([&r.gru.input, &r.gru.hidden])
+                .map(dense)
+                .sum::<usize>();
         }
         n
     }
 
     /// Widest intermediate activation (for sizing scratch buffers).
     pub fn max_width(&self) -> usize {
-        let mut w = self.latent.max(self.input_joints * (STATIC_DIM + DYNAMIC_DIM));
+        let mut w = self
+            .latent
+            .max(self.input_joints * (STATIC_DIM + DYNAMIC_DIM));
         let all = self.static_layers.iter().chain(&self.decoder_layers);
         for l in all {
             w = w.max(l.d_out).max(l.d_in);
@@ -347,7 +487,12 @@ mod tests {
 
     #[test]
     fn dense_forms_agree() {
-        let d = DenseWeights { d_in: 3, d_out: 5, weight: (0..15).map(|v| v as f32 * 0.1 - 0.7).collect(), bias: Some(vec![0.5; 5]) };
+        let d = DenseWeights {
+            d_in: 3,
+            d_out: 5,
+            weight: (0..15).map(|v| v as f32 * 0.1 - 0.7).collect(),
+            bias: Some(vec![0.5; 5]),
+        };
         let x = [1.0, 0.0, -2.0];
         let mut y = [0.0; 5];
         d.forward(&x, &mut y);
@@ -367,9 +512,25 @@ mod tests {
     fn from_module_round_trips_shapes() {
         use crate::model::network::ClothNetConfig;
         let device = burn::tensor::Device::flex();
-        let cfg = ClothNetConfig { static_hidden: vec![6], joint_hidden: vec![4], dynamic_hidden: vec![8], latent: 5, decoder_hidden: vec![7], ..Default::default() };
-        for kind in [EncoderKind::Disentangled, EncoderKind::Entangled, EncoderKind::StaticOnly] {
-            let net = ClothNetConfig { encoder: kind, ..cfg.clone() }.init(2, 4, &device).unwrap();
+        let cfg = ClothNetConfig {
+            static_hidden: vec![6],
+            joint_hidden: vec![4],
+            dynamic_hidden: vec![8],
+            latent: 5,
+            decoder_hidden: vec![7],
+            ..Default::default()
+        };
+        for kind in [
+            EncoderKind::Disentangled,
+            EncoderKind::Entangled,
+            EncoderKind::StaticOnly,
+        ] {
+            let net = ClothNetConfig {
+                encoder: kind,
+                ..cfg.clone()
+            }
+            .init(2, 4, &device)
+            .unwrap();
             let w = InferenceWeights::from_module(&net).unwrap();
             assert_eq!(w.kind, kind);
             assert_eq!(w.basis.d_out, 12);

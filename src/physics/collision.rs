@@ -29,10 +29,15 @@ impl PosedBody {
     /// Builds the query structure for body vertices `positions` joined by `faces` (normals are
     /// area-weighted vertex normals of that mesh).
     pub fn new(positions: Vec<Vec3>, faces: &[[u32; 3]]) -> Result<Self, PhysicsError> {
-        let mesh = TriMesh::new(positions, faces.to_vec()).map_err(|e| PhysicsError::InvalidBody(e.to_string()))?;
+        let mesh = TriMesh::new(positions, faces.to_vec())
+            .map_err(|e| PhysicsError::InvalidBody(e.to_string()))?;
         let normals = mesh.vertex_normals();
         let tree = KdTree::new(&mesh.positions);
-        Ok(Self { positions: mesh.positions, normals, tree })
+        Ok(Self {
+            positions: mesh.positions,
+            normals,
+            tree,
+        })
     }
 
     /// The avatar's body in `pose`.
@@ -93,12 +98,20 @@ pub struct Contacts {
     pub points: Tensor<3>,
     /// Its unit normal, `[B, V, 3]`.
     pub normals: Tensor<3>,
+    /// Signed distances at the queried positions, `B·V` values in metres (CPU copy).
+    pub distances_m: Vec<f32>,
 }
 
 impl Contacts {
     /// Queries `bodies` with the positions `x_flat` (`B·V·3` values, sample-major) and uploads
-    /// the result. One k-d tree query per vertex, samples in parallel.
-    pub fn query(bodies: &BodyBatch, x_flat: &[f32], vertices: usize, device: &Device, dtype: DType) -> Result<Self, PhysicsError> {
+    /// the result. One k-d tree query per vertex, in parallel.
+    pub fn query(
+        bodies: &BodyBatch,
+        x_flat: &[f32],
+        vertices: usize,
+        device: &Device,
+        dtype: DType,
+    ) -> Result<Self, PhysicsError> {
         let b = bodies.len();
         if b == 0 || x_flat.len() != b * vertices * 3 {
             return Err(PhysicsError::ShapeMismatch {
@@ -107,29 +120,37 @@ impl Contacts {
                 found: format!("{} values", x_flat.len()),
             });
         }
-        let per_sample: Vec<(Vec<f32>, Vec<f32>)> = bodies
-            .bodies
-            .par_iter()
-            .zip(x_flat.par_chunks_exact(vertices * 3))
-            .map(|(body, xs)| {
-                let mut pts = Vec::with_capacity(vertices * 3);
-                let mut nrm = Vec::with_capacity(vertices * 3);
-                for q in xs.chunks_exact(3) {
-                    let i = body.nearest(&Vec3::new(q[0], q[1], q[2]));
-                    let (p, n) = (body.positions[i], body.normals[i]);
-                    pts.extend_from_slice(&[p.x, p.y, p.z]);
-                    nrm.extend_from_slice(&[n.x, n.y, n.z]);
-                }
-                (pts, nrm)
+        let found: Vec<[f32; 7]> = x_flat
+            .par_chunks_exact(3)
+            .enumerate()
+            .map(|(k, q)| {
+                let body = &bodies.bodies[k / vertices.max(1)];
+                let q = Vec3::new(q[0], q[1], q[2]);
+                let i = body.nearest(&q);
+                let (p, n) = (body.positions[i], body.normals[i]);
+                [p.x, p.y, p.z, n.x, n.y, n.z, n.dot(&(q - p))]
             })
             .collect();
-        let (pts, nrm): (Vec<Vec<f32>>, Vec<Vec<f32>>) = per_sample.into_iter().unzip();
-        let up = |v: Vec<Vec<f32>>| Tensor::from_data(TensorData::new(v.concat(), [b, vertices, 3]), (device, dtype));
-        Ok(Self { points: up(pts), normals: up(nrm) })
+        let column = |range: std::ops::Range<usize>| -> Tensor<3> {
+            let flat: Vec<f32> = found
+                .iter()
+                .flat_map(|f| f[range.clone()].iter().copied())
+                .collect();
+            Tensor::from_data(TensorData::new(flat, [b, vertices, 3]), (device, dtype))
+        };
+        Ok(Self {
+            points: column(0..3),
+            normals: column(3..6),
+            distances_m: found.iter().map(|f| f[6]).collect(),
+        })
     }
 
     /// Queries with the current prediction `x` (`[B, V, 3]`, read back detached).
-    pub fn for_prediction(bodies: &BodyBatch, x: &Tensor<3>, dtype: DType) -> Result<Self, PhysicsError> {
+    pub fn for_prediction(
+        bodies: &BodyBatch,
+        x: &Tensor<3>,
+        dtype: DType,
+    ) -> Result<Self, PhysicsError> {
         let [b, v, _] = x.dims();
         if b != bodies.len() {
             return Err(PhysicsError::ShapeMismatch {
@@ -145,20 +166,36 @@ impl Contacts {
 
 /// Signed distances `[B, V, 1]` of `x` to the contact points, in metres.
 pub fn signed_distances(x: &Tensor<3>, contacts: &Contacts) -> Tensor<3> {
-    dot(x.clone() - contacts.points.clone(), contacts.normals.clone())
+    dot(
+        x.clone() - contacts.points.clone(),
+        contacts.normals.clone(),
+    )
 }
 
 /// Collision energy `k_c Σ_v mask_v min(d_v - ε, 0)²` per sample, `[B]` joules.
-pub fn collision(x: &Tensor<3>, contacts: &Contacts, rt: &RestTensors, k_c: f32, eps_m: f32) -> Tensor<1> {
+pub fn collision(
+    x: &Tensor<3>,
+    contacts: &Contacts,
+    rt: &RestTensors,
+    k_c: f32,
+    eps_m: f32,
+) -> Tensor<1> {
     let Some(mask) = rt.collide.as_ref() else {
         return rt.zeros(x.dims()[0]);
     };
-    let pen = signed_distances(x, contacts).sub_scalar(eps_m).clamp_max(0.0);
+    let pen = signed_distances(x, contacts)
+        .sub_scalar(eps_m)
+        .clamp_max(0.0);
     per_sample(pen.square() * mask.clone()).mul_scalar(k_c)
 }
 
 /// Fraction of colliding vertices with `d < 0` per sample, `[B]` (the collision metric / 100).
-pub fn inside_fraction(x: &Tensor<3>, contacts: &Contacts, rt: &RestTensors, colliding: usize) -> Option<Tensor<1>> {
+pub fn inside_fraction(
+    x: &Tensor<3>,
+    contacts: &Contacts,
+    rt: &RestTensors,
+    colliding: usize,
+) -> Option<Tensor<1>> {
     let mask = rt.collide.as_ref()?;
     let d = signed_distances(x, contacts);
     let inside = d.zeros_like().mask_fill(d.lower_elem(0.0), 1.0);

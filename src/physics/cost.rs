@@ -60,7 +60,12 @@ impl CostReport {
 /// Measures every term at about `dof` degrees of freedom (a flared tube around a sphere) with
 /// `batch` samples, `repeats` timed runs each (after one warm-up), on `device` (autodiff is
 /// enabled on it for the backward passes).
-pub fn measure_term_costs(device: &Device, dof: usize, batch: usize, repeats: usize) -> Result<CostReport, PhysicsError> {
+pub fn measure_term_costs(
+    device: &Device,
+    dof: usize,
+    batch: usize,
+    repeats: usize,
+) -> Result<CostReport, PhysicsError> {
     let device = device.clone().autodiff();
     let dtype = device.settings().float_dtype.into();
     let batch = batch.clamp(1, 256);
@@ -68,13 +73,30 @@ pub fn measure_term_costs(device: &Device, dof: usize, batch: usize, repeats: us
     let vertices = (dof / 3).max(16);
     let around = ((vertices as f32 * 2.0).sqrt().round() as usize).max(4);
     let rows = (vertices / around).max(2) - 1;
-    let mesh = tube(Vec3::new(0.0, 1.0, 0.0), 0.31, 0.45, 0.25, -0.35, around, rows);
+    let mesh = tube(
+        Vec3::new(0.0, 1.0, 0.0),
+        0.31,
+        0.45,
+        0.25,
+        -0.35,
+        around,
+        rows,
+    );
     let topology = Topology::new(&mesh);
     let top: Vec<u32> = (0..around as u32).collect();
     let fabric = FabricParams::default();
-    let rest = Arc::new(GarmentRest::new(&mesh, &topology, &top, &[], fabric.density_kg_per_m2)?);
+    let rest = Arc::new(GarmentRest::new(
+        &mesh,
+        &topology,
+        &top,
+        &[],
+        fabric.density_kg_per_m2,
+    )?);
     let body_mesh = uv_sphere(Vec3::new(0.0, 1.0, 0.0), 0.32, 72, 96);
-    let body = Arc::new(PosedBody::new(body_mesh.positions.clone(), &body_mesh.faces)?);
+    let body = Arc::new(PosedBody::new(
+        body_mesh.positions.clone(),
+        &body_mesh.faces,
+    )?);
     let bodies = BodyBatch::new(vec![body; batch]);
     let v = mesh.positions.len();
     let flat: Vec<f32> = (0..batch)
@@ -85,41 +107,66 @@ pub fn measure_term_costs(device: &Device, dof: usize, batch: usize, repeats: us
             })
         })
         .collect();
-    let x0 = Tensor::<3>::from_data(TensorData::new(flat.clone(), [batch, v, 3]), (&device, dtype));
-    let all = Effects::default();
+    let x0 = Tensor::<3>::from_data(
+        TensorData::new(flat.clone(), [batch, v, 3]),
+        (&device, dtype),
+    );
+    let all = Effects {
+        gravity: true,
+        bending: true,
+        collision: true,
+        dynamics: true,
+        pinning: true,
+    };
     let terms_of = |model: ClothModel| {
-        let f = FabricParams { cloth_model: model, ..fabric.clone() };
+        let f = FabricParams {
+            cloth_model: model,
+            ..fabric.clone()
+        };
         PhysicsTerms::from_rest(rest.clone(), &f, &all, &device, dtype)
     };
     let bw = terms_of(ClothModel::BaraffWitkin)?;
     let ms = terms_of(ClothModel::MassSpring)?;
     let stvk = terms_of(ClothModel::Stvk)?;
-    let no_collision = PhysicsTerms::from_rest(rest.clone(), &fabric, &Effects { collision: false, ..all }, &device, dtype)?;
+    let no_collision = PhysicsTerms::from_rest(
+        rest.clone(),
+        &fabric,
+        &Effects {
+            collision: false,
+            ..all
+        },
+        &device,
+        dtype,
+    )?;
     let contacts = Contacts::query(&bodies, &flat, v, &device, dtype)?;
     let (prev1, prev2) = (x0.clone().mul_scalar(0.999), x0.clone().mul_scalar(0.998));
 
-    let time = |f: &dyn Fn(&Tensor<3>) -> Result<Tensor<1>, PhysicsError>| -> Result<f64, PhysicsError> {
-        let mut samples = Vec::with_capacity(repeats);
-        for k in 0..=repeats {
-            let x = x0.clone().require_grad();
-            let start = Instant::now();
-            let loss = f(&x)?;
-            let grads = loss.backward();
-            if let Some(g) = x.grad(&grads) {
-                read_f64(g.sum())?;
+    let time =
+        |f: &dyn Fn(&Tensor<3>) -> Result<Tensor<1>, PhysicsError>| -> Result<f64, PhysicsError> {
+            let mut samples = Vec::with_capacity(repeats);
+            for k in 0..=repeats {
+                let x = x0.clone().require_grad();
+                let start = Instant::now();
+                let loss = f(&x)?;
+                let grads = loss.backward();
+                if let Some(g) = x.grad(&grads) {
+                    read_f64(g.sum())?;
+                }
+                if k > 0 {
+                    samples.push(start.elapsed().as_secs_f64() * 1e3);
+                }
             }
-            if k > 0 {
-                samples.push(start.elapsed().as_secs_f64() * 1e3);
-            }
-        }
-        samples.sort_by(f64::total_cmp);
-        Ok(samples[samples.len() / 2])
-    };
+            samples.sort_by(f64::total_cmp);
+            Ok(samples[samples.len() / 2])
+        };
     let rt = bw.tensors();
-    let sum_terms = |t: Vec<(super::Term, Tensor<1>)>| t.into_iter().map(|(_, v)| v.sum()).reduce(|a, b| a + b);
+    let sum_terms =
+        |t: Vec<(super::Term, Tensor<1>)>| t.into_iter().map(|(_, v)| v.sum()).reduce(|a, b| a + b);
     let baseline = time(&|x| Ok(x.clone().square().sum()))?;
     let mut rows_out: Vec<(String, f64)> = Vec::new();
-    let mut add = |name: &str, f: &dyn Fn(&Tensor<3>) -> Result<Tensor<1>, PhysicsError>| -> Result<(), PhysicsError> {
+    let mut add = |name: &str,
+                   f: &dyn Fn(&Tensor<3>) -> Result<Tensor<1>, PhysicsError>|
+     -> Result<(), PhysicsError> {
         rows_out.push((name.to_string(), time(f)?));
         Ok(())
     };
@@ -127,9 +174,15 @@ pub fn measure_term_costs(device: &Device, dof: usize, batch: usize, repeats: us
         let (a, b) = super::energies::baraff_witkin(x, rt, 10.0, 1.0);
         Ok((a + b).sum())
     })?;
-    add("mass-spring", &|x| Ok(super::energies::mass_spring(x, ms.tensors(), 10.0).sum()))?;
-    add("stvk", &|x| Ok(super::energies::stvk(x, stvk.tensors(), 20.9, 11.1).sum()))?;
-    add("bending", &|x| Ok(super::energies::bending(x, rt, 2e-5).sum()))?;
+    add("mass-spring", &|x| {
+        Ok(super::energies::mass_spring(x, ms.tensors(), 10.0).sum())
+    })?;
+    add("stvk", &|x| {
+        Ok(super::energies::stvk(x, stvk.tensors(), 20.9, 11.1).sum())
+    })?;
+    add("bending", &|x| {
+        Ok(super::energies::bending(x, rt, 2e-5).sum())
+    })?;
     add("collision energy (contacts given)", &|x| {
         Ok(super::collision::collision(x, &contacts, rt, 10.0, 0.004).sum())
     })?;
@@ -138,10 +191,16 @@ pub fn measure_term_costs(device: &Device, dof: usize, batch: usize, repeats: us
         Ok(super::collision::collision(x, &c, rt, 10.0, 0.004).sum())
     })?;
     add("gravity", &|x| Ok(super::energies::gravity(x, rt).sum()))?;
-    add("inertia", &|x| Ok(super::energies::inertia(x, &prev1, &prev2, rt, 1.0 / 30.0).sum()))?;
-    add("pinning", &|x| bw.pinning(x, &prev1).ok_or(PhysicsError::MissingBody))?;
+    add("inertia", &|x| {
+        Ok(super::energies::inertia(x, &prev1, &prev2, rt, 1.0 / 30.0).sum())
+    })?;
+    add("pinning", &|x| {
+        bw.pinning(x, &prev1).ok_or(PhysicsError::MissingBody)
+    })?;
     add("all static terms, collision on (static_losses)", &|x| {
-        bw.static_losses(x, Some(&bodies))?.total().ok_or(PhysicsError::MissingBody)
+        bw.static_losses(x, Some(&bodies))?
+            .total()
+            .ok_or(PhysicsError::MissingBody)
     })?;
     add("all static terms, collision off", &|x| {
         sum_terms(no_collision.static_energies(x, None)?).ok_or(PhysicsError::MissingBody)
@@ -155,7 +214,11 @@ pub fn measure_term_costs(device: &Device, dof: usize, batch: usize, repeats: us
         baseline_ms: baseline,
         terms: rows_out
             .into_iter()
-            .map(|(name, ms)| TermCost { ratio: ms / baseline.max(1e-9), name, ms })
+            .map(|(name, ms)| TermCost {
+                ratio: ms / baseline.max(1e-9),
+                name,
+                ms,
+            })
             .collect(),
     })
 }

@@ -181,10 +181,24 @@ impl FabricParams {
         check("bending_stiffness", self.bending_stiffness, 0.0, 10.0)?;
         check("density_kg_per_m2", self.density_kg_per_m2, 1e-4, 100.0)?;
         check("collision_stiffness", self.collision_stiffness, 0.0, 1e7)?;
-        check("collision_threshold_m", self.collision_threshold_m, 0.0, 0.1)?;
+        check(
+            "collision_threshold_m",
+            self.collision_threshold_m,
+            0.0,
+            0.1,
+        )?;
         check("pinning_stiffness", self.pinning_stiffness, 0.0, 1e8)?;
         for (k, g) in self.gravity_m_per_s2.iter().enumerate() {
-            check(["gravity_m_per_s2[0]", "gravity_m_per_s2[1]", "gravity_m_per_s2[2]"][k], *g, -1000.0, 1000.0)?;
+            check(
+                [
+                    "gravity_m_per_s2[0]",
+                    "gravity_m_per_s2[1]",
+                    "gravity_m_per_s2[2]",
+                ][k],
+                *g,
+                -1000.0,
+                1000.0,
+            )?;
         }
         let in_plane = match self.cloth_model {
             ClothModel::MassSpring => self.stretch_stiffness,
@@ -194,7 +208,10 @@ impl FabricParams {
         if in_plane <= 0.0 {
             return Err(PhysicsError::InvalidFabric {
                 field: "cloth_model".into(),
-                reason: format!("{:?} has all its stiffnesses at zero: the cloth would not hold together", self.cloth_model),
+                reason: format!(
+                    "{:?} has all its stiffnesses at zero: the cloth would not hold together",
+                    self.cloth_model
+                ),
             });
         }
         Ok(())
@@ -224,8 +241,14 @@ mod tests {
     fn default_is_official_and_valid() {
         let p = FabricParams::default();
         assert_eq!(p.cloth_model, ClothModel::BaraffWitkin);
-        assert_eq!((p.stretch_stiffness, p.shear_stiffness, p.bending_stiffness), (10.0, 1.0, 2e-5));
-        assert_eq!((p.density_kg_per_m2, p.collision_threshold_m), (0.15, 0.004));
+        assert_eq!(
+            (p.stretch_stiffness, p.shear_stiffness, p.bending_stiffness),
+            (10.0, 1.0, 2e-5)
+        );
+        assert_eq!(
+            (p.density_kg_per_m2, p.collision_threshold_m),
+            (0.15, 0.004)
+        );
         p.validate().unwrap();
         for name in PRESET_NAMES {
             FabricParams::preset(name).unwrap().validate().unwrap();
@@ -234,7 +257,10 @@ mod tests {
         let silk = FabricParams::preset("silk").unwrap();
         assert!(denim.bending_stiffness > 10.0 * silk.bending_stiffness);
         assert!(denim.density_kg_per_m2 > silk.density_kg_per_m2);
-        assert!(matches!(FabricParams::preset("tweed"), Err(PhysicsError::UnknownPreset { .. })));
+        assert!(matches!(
+            FabricParams::preset("tweed"),
+            Err(PhysicsError::UnknownPreset { .. })
+        ));
     }
 
     #[test]
@@ -257,11 +283,26 @@ mod tests {
         let unknown: toml::Table = "stiffnes = 3.0".parse().unwrap();
         let e = FabricParams::from_table(&unknown).unwrap_err().to_string();
         assert!(e.contains("stiffnes"), "{e}");
-        let nan = FabricParams { bending_stiffness: f32::NAN, ..FabricParams::default() };
-        assert!(nan.validate().unwrap_err().to_string().contains("bending_stiffness"));
-        let limp = FabricParams { cloth_model: ClothModel::MassSpring, stretch_stiffness: 0.0, ..FabricParams::default() };
+        let nan = FabricParams {
+            bending_stiffness: f32::NAN,
+            ..FabricParams::default()
+        };
+        assert!(
+            nan.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("bending_stiffness")
+        );
+        let limp = FabricParams {
+            cloth_model: ClothModel::MassSpring,
+            stretch_stiffness: 0.0,
+            ..FabricParams::default()
+        };
         assert!(limp.validate().is_err());
         let alias: toml::Table = "cloth_model = \"mass-spring\"".parse().unwrap();
-        assert_eq!(FabricParams::from_table(&alias).unwrap().cloth_model, ClothModel::MassSpring);
+        assert_eq!(
+            FabricParams::from_table(&alias).unwrap().cloth_model,
+            ClothModel::MassSpring
+        );
     }
 }

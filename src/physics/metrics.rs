@@ -57,31 +57,54 @@ impl PhysicsTerms {
     /// Metrics of the batch `x` (`[B, V, 3]`), averaged over the batch. Every metric is
     /// computed whatever the effects are (bending and collision need their data: hinges are
     /// evaluated only if uploaded, collision only with `contacts`).
-    pub fn metrics(&self, x: &Tensor<3>, contacts: Option<&Contacts>, history: Option<&History>) -> Result<ClothMetrics, PhysicsError> {
+    pub fn metrics(
+        &self,
+        x: &Tensor<3>,
+        contacts: Option<&Contacts>,
+        history: Option<&History>,
+    ) -> Result<ClothMetrics, PhysicsError> {
         let b = self.tensors().batch_of(x)?;
         let x = x.clone().detach();
         let rt = self.tensors();
         let rest = self.rest();
-        let mean = |t: Tensor<1>| -> Result<f64, PhysicsError> { Ok(read_f64(t)?.iter().sum::<f64>() / b as f64) };
+        let mean = |t: Tensor<1>| -> Result<f64, PhysicsError> {
+            Ok(read_f64(t)?.iter().sum::<f64>() / b as f64)
+        };
         let mut m = ClothMetrics::default();
-        if let (Some(len), Some(rest_len)) = (energies::edge_lengths(&x, rt), rt.edge_rest.as_ref()) {
+        if let (Some(len), Some(rest_len)) = (energies::edge_lengths(&x, rt), rt.edge_rest.as_ref())
+        {
             let ne = rest.edges.len().max(1) as f64;
             let d = len - rest_len.clone();
             m.edge_elongation_m = mean(per_sample(d.clone().abs()))? / ne;
             m.edge_strain = mean(per_sample(d / rest_len.clone()))? / ne;
         }
         let total_area2 = 2.0 * rest.total_area_m2;
-        if let (Some((su, sv, sh)), Some(area2)) = (energies::stretch_and_shear(&x, rt), rt.face_area2.as_ref()) {
-            let w = |t: Tensor<3>| per_sample(t * area2.clone()).div_scalar(total_area2.max(f64::MIN_POSITIVE));
+        if let (Some((su, sv, sh)), Some(area2)) =
+            (energies::stretch_and_shear(&x, rt), rt.face_area2.as_ref())
+        {
+            let w = |t: Tensor<3>| {
+                per_sample(t * area2.clone()).div_scalar(total_area2.max(f64::MIN_POSITIVE))
+            };
             m.stretch = mean(w((su.abs() + sv.abs()).mul_scalar(0.5)))?;
             m.shear = mean(w(sh.abs()))?;
         }
-        if let (Some((g00, g11, g01)), Some(area2)) = (energies::green_strain(&x, rt), rt.face_area2.as_ref()) {
+        if let (Some((g00, g11, g01)), Some(area2)) =
+            (energies::green_strain(&x, rt), rt.face_area2.as_ref())
+        {
             let frob = (g00.square() + g11.square() + g01.square().mul_scalar(2.0)).sqrt();
-            m.green_strain = mean(per_sample(frob * area2.clone()).div_scalar(total_area2.max(f64::MIN_POSITIVE)))?;
+            m.green_strain = mean(
+                per_sample(frob * area2.clone()).div_scalar(total_area2.max(f64::MIN_POSITIVE)),
+            )?;
         }
-        if let (Some(delta), Some([weight, ..])) = (energies::dihedral_change(&x, rt), rt.hinge_consts.as_ref()) {
-            let usable = rest.hinge_weight.iter().filter(|w| **w > 0.0).count().max(1) as f64;
+        if let (Some(delta), Some([weight, ..])) =
+            (energies::dihedral_change(&x, rt), rt.hinge_consts.as_ref())
+        {
+            let usable = rest
+                .hinge_weight
+                .iter()
+                .filter(|w| **w > 0.0)
+                .count()
+                .max(1) as f64;
             // weight >= 0, so its sign is the 0/1 mask of usable hinges.
             m.bending_rad = mean(per_sample(delta.abs() * weight.clone().sign()))? / usable;
         }
@@ -93,8 +116,16 @@ impl PhysicsTerms {
         }
         m.gravity_j = mean(energies::gravity(&x, rt))?;
         if let Some(h) = history {
-            m.inertia_j = Some(mean(energies::inertia(&x, &h.x_t1, &h.x_t2, rt, h.dt_secs))?);
-            m.inertia_m = Some(mean(energies::inertia_distance(&x, &h.x_t1, &h.x_t2, rt, rest.total_mass_kg))?);
+            m.inertia_j = Some(mean(energies::inertia(
+                &x, &h.x_t1, &h.x_t2, rt, h.dt_secs,
+            ))?);
+            m.inertia_m = Some(mean(energies::inertia_distance(
+                &x,
+                &h.x_t1,
+                &h.x_t2,
+                rt,
+                rest.total_mass_kg,
+            ))?);
         }
         Ok(m)
     }
@@ -109,14 +140,14 @@ pub fn sequence_metrics(
     bodies: Option<&[Arc<PosedBody>]>,
     dt_secs: f32,
 ) -> Result<Vec<ClothMetrics>, PhysicsError> {
-    if let Some(b) = bodies {
-        if b.len() != frames.len() {
-            return Err(PhysicsError::ShapeMismatch {
-                what: "bodies for sequence metrics".into(),
-                expected: format!("{} (one per frame)", frames.len()),
-                found: b.len().to_string(),
-            });
-        }
+    if let Some(b) = bodies
+        && b.len() != frames.len()
+    {
+        return Err(PhysicsError::ShapeMismatch {
+            what: "bodies for sequence metrics".into(),
+            expected: format!("{} (one per frame)", frames.len()),
+            found: b.len().to_string(),
+        });
     }
     let (device, dtype) = (terms.device().clone(), terms.dtype());
     let mut out = Vec::with_capacity(frames.len());
@@ -129,12 +160,25 @@ pub fn sequence_metrics(
             None => None,
         };
         for k in start..end {
-            let pick = |t: &Tensor<3>, i: usize| t.clone().slice([i..i + 1]);
+            let pick = |t: &Tensor<3>, i: usize| t.clone().narrow(0, i, 1);
             let xk = pick(&x, k - start);
-            let ck = contacts.as_ref().map(|c| Contacts { points: pick(&c.points, k - start), normals: pick(&c.normals, k - start) });
+            let v = terms.rest().vertex_count();
+            let ck = contacts.as_ref().map(|c| Contacts {
+                points: pick(&c.points, k - start),
+                normals: pick(&c.normals, k - start),
+                distances_m: c
+                    .distances_m
+                    .get((k - start) * v..(k - start + 1) * v)
+                    .map(<[f32]>::to_vec)
+                    .unwrap_or_default(),
+            });
             let history = if k >= 2 {
                 let prev = |i: usize| positions_tensor(&[frames[i].as_slice()], &device, dtype);
-                Some(History { x_t1: prev(k - 1)?, x_t2: prev(k - 2)?, dt_secs })
+                Some(History {
+                    x_t1: prev(k - 1)?,
+                    x_t2: prev(k - 2)?,
+                    dt_secs,
+                })
             } else {
                 None
             };

@@ -33,12 +33,13 @@ pub mod metrics;
 pub mod rest;
 pub mod shapes;
 pub mod simulator;
+pub mod sparse;
 pub mod tensors;
 pub mod terms;
 
-pub use collision::{BodyBatch, Contacts, PosedBody};
 /// The scene's effect set decides which terms are built and evaluated.
 pub use crate::scene::config::Effects;
+pub use collision::{BodyBatch, Contacts, PosedBody};
 pub use fabric::{ClothModel, FabricParams};
 pub use metrics::ClothMetrics;
 pub use rest::GarmentRest;

@@ -38,19 +38,21 @@ pub struct GarmentRest {
     pub face_inv_rest: Vec<[f64; 4]>,
     /// `|cross|` of each rest triangle (twice its area) in m², zero for degenerate triangles.
     pub face_area2_m2: Vec<f64>,
-    /// Hinges `[edge0, edge1, opposite0, opposite1]` (the signed dihedral convention of
-    /// [`crate::geometry::topology::dihedral_angle`]).
+    /// Hinges `[edge0, edge1, opposite0, opposite1]`; the signed dihedral angle is that of the
+    /// two faces' own normals about the edge `edge1 - edge0` (for consistently oriented meshes
+    /// the convention of [`crate::geometry::topology::dihedral_angle`]).
     pub hinges: Vec<[u32; 4]>,
-    /// Hinge weights `l̄² / (8 (|c̄_0| + |c̄_1|))` (dimensionless), zero for degenerate hinges.
+    /// Hinge weights `l̄² / (8 (|c̄_0| + |c̄_1|))` (dimensionless), zero for hinges touching a
+    /// degenerate face.
     pub hinge_weight: Vec<f64>,
     /// Cosine of the rest dihedral angle.
     pub hinge_rest_cos: Vec<f64>,
     /// Sine of the rest dihedral angle.
     pub hinge_rest_sin: Vec<f64>,
-    /// Squared regulariser for normalising hinge face normals, in m⁴ (`(1e-3·|c̄|)²` plus a floor).
-    pub hinge_normal_eps2: Vec<f64>,
-    /// Squared regulariser for normalising hinge edges, in m².
-    pub hinge_edge_eps2: Vec<f64>,
+    /// The two faces of each hinge (`faces[0]` holds the edge in the order of `hinges`).
+    pub hinge_faces: Vec<[u32; 2]>,
+    /// `1/|c̄_f|` per face (0 for degenerate ones): scales current face normals to ~unit length.
+    pub face_normal_scale: Vec<f64>,
     /// Pinned vertices.
     pub pinned: Vec<u32>,
     /// Per vertex: does it collide with the body (false for the garment's `no_collide` list).
@@ -66,7 +68,13 @@ pub struct GarmentRest {
 impl GarmentRest {
     /// Rest state of a scene garment with the density of `fabric`.
     pub fn from_garment(garment: &Garment, fabric: &FabricParams) -> Result<Self, PhysicsError> {
-        Self::new(&garment.mesh, &garment.topology, &garment.pinned, &garment.no_collide, fabric.density_kg_per_m2)
+        Self::new(
+            &garment.mesh,
+            &garment.topology,
+            &garment.pinned,
+            &garment.no_collide,
+            fabric.density_kg_per_m2,
+        )
     }
 
     /// Rest state of `mesh` with connectivity `topology`.
@@ -77,7 +85,8 @@ impl GarmentRest {
         no_collide: &[u32],
         density_kg_per_m2: f32,
     ) -> Result<Self, PhysicsError> {
-        mesh.validate().map_err(|e| PhysicsError::InvalidGarment(e.to_string()))?;
+        mesh.validate()
+            .map_err(|e| PhysicsError::InvalidGarment(e.to_string()))?;
         let n = mesh.positions.len();
         if !(density_kg_per_m2.is_finite() && density_kg_per_m2 > 0.0) {
             return Err(PhysicsError::InvalidFabric {
@@ -87,15 +96,24 @@ impl GarmentRest {
         }
         let bad_index = |what: &str, list: &[u32]| -> Result<(), PhysicsError> {
             match list.iter().find(|&&i| i as usize >= n) {
-                Some(i) => Err(PhysicsError::InvalidGarment(format!("{what} vertex {i} out of range ({n} vertices)"))),
+                Some(i) => Err(PhysicsError::InvalidGarment(format!(
+                    "{what} vertex {i} out of range ({n} vertices)"
+                ))),
                 None => Ok(()),
             }
         };
         bad_index("pinned", pinned)?;
         bad_index("no-collide", no_collide)?;
-        let check_edges = topology.edges.iter().flatten().chain(topology.hinges.iter().flat_map(|h| h.edge.iter().chain(&h.opposite)));
+        let check_edges = topology.edges.iter().flatten().chain(
+            topology
+                .hinges
+                .iter()
+                .flat_map(|h| h.edge.iter().chain(&h.opposite)),
+        );
         if let Some(i) = check_edges.copied().find(|&i| i as usize >= n) {
-            return Err(PhysicsError::InvalidGarment(format!("topology refers to vertex {i} of {n}")));
+            return Err(PhysicsError::InvalidGarment(format!(
+                "topology refers to vertex {i} of {n}"
+            )));
         }
         let p: Vec<V64> = mesh.positions.iter().map(|v| v.cast::<f64>()).collect();
 
@@ -115,38 +133,76 @@ impl GarmentRest {
             }
         }
         let total_area_m2: f64 = face_area2.iter().sum::<f64>() / 2.0;
-        let mass: Vec<f64> = vertex_area.iter().map(|a| a * f64::from(density_kg_per_m2)).collect();
+        let mass: Vec<f64> = vertex_area
+            .iter()
+            .map(|a| a * f64::from(density_kg_per_m2))
+            .collect();
 
         // Edges.
-        let lengths: Vec<f64> = topology.edges.iter().map(|&[a, b]| (p[a as usize] - p[b as usize]).norm()).collect();
-        let mean_edge = if lengths.is_empty() { 0.0 } else { lengths.iter().sum::<f64>() / lengths.len() as f64 };
+        let lengths: Vec<f64> = topology
+            .edges
+            .iter()
+            .map(|&[a, b]| (p[a as usize] - p[b as usize]).norm())
+            .collect();
+        let mean_edge = if lengths.is_empty() {
+            0.0
+        } else {
+            lengths.iter().sum::<f64>() / lengths.len() as f64
+        };
         let scale = if mean_edge > 0.0 { mean_edge } else { 1.0 };
         let edge_eps2 = (1e-6 * scale).powi(2);
         let edge_rest: Vec<f64> = lengths.iter().map(|l| (l * l + edge_eps2).sqrt()).collect();
 
-        // Hinges.
-        let mean_area2 = if face_area2.is_empty() { 0.0 } else { 2.0 * total_area_m2 / face_area2.len() as f64 };
-        let area_floor = 1e-6 * if mean_area2 > 0.0 { mean_area2 } else { scale * scale };
+        // Hinges, with the dihedral convention of the energy: the normals are the faces' own
+        // `|cross|`-scaled normals, so a flipped face flips θ and θ̄ alike.
         let mut hinges = Vec::with_capacity(topology.hinges.len());
-        let (mut weight, mut rest_cos, mut rest_sin, mut n_eps2, mut e_eps2) = (vec![], vec![], vec![], vec![], vec![]);
+        let mut hinge_faces = Vec::with_capacity(topology.hinges.len());
+        let (mut weight, mut rest_cos, mut rest_sin) = (vec![], vec![], vec![]);
+        let unit_normal = |f: usize| -> Option<V64> {
+            let [a, b, c] = mesh.faces.get(f)?.map(|i| p[i as usize]);
+            let cross = (b - a).cross(&(c - a));
+            (face_area2.get(f).copied().unwrap_or(0.0) > 0.0).then(|| cross / cross.norm())
+        };
         for h in &topology.hinges {
             let [e0, e1] = h.edge;
             let [o0, o1] = h.opposite;
+            if h.faces.iter().any(|&f| f as usize >= mesh.faces.len()) {
+                return Err(PhysicsError::InvalidGarment(format!(
+                    "hinge refers to face {:?} of {}",
+                    h.faces,
+                    mesh.faces.len()
+                )));
+            }
             hinges.push([e0, e1, o0, o1]);
-            let a0 = face_area2.get(h.faces[0] as usize).copied().unwrap_or(0.0);
-            let a1 = face_area2.get(h.faces[1] as usize).copied().unwrap_or(0.0);
-            let l = (p[e1 as usize] - p[e0 as usize]).norm();
-            let (s, c) = dihedral_sin_cos(p[e0 as usize], p[e1 as usize], p[o0 as usize], p[o1 as usize]);
-            let r = (s * s + c * c).sqrt();
-            let usable = a0 > 0.0 && a1 > 0.0 && r > 0.0 && a0 + a1 > area_floor;
-            weight.push(if usable { l * l / (8.0 * (a0 + a1)) } else { 0.0 });
-            rest_cos.push(if usable { c / r } else { 1.0 });
-            rest_sin.push(if usable { s / r } else { 0.0 });
-            let delta = 1e-3 * a0.min(a1) + area_floor;
-            n_eps2.push(delta * delta);
-            let de = 1e-3 * l + 1e-6 * scale;
-            e_eps2.push(de * de);
+            hinge_faces.push(h.faces);
+            let edge = p[e1 as usize] - p[e0 as usize];
+            let l = edge.norm();
+            let (a0, a1) = (
+                face_area2[h.faces[0] as usize],
+                face_area2[h.faces[1] as usize],
+            );
+            match (
+                unit_normal(h.faces[0] as usize),
+                unit_normal(h.faces[1] as usize),
+            ) {
+                (Some(n0), Some(n1)) if l > 0.0 => {
+                    let (s, c) = (n0.cross(&n1).dot(&edge) / l, n0.dot(&n1));
+                    let r = (s * s + c * c).sqrt();
+                    weight.push(l * l / (8.0 * (a0 + a1)));
+                    rest_cos.push(if r > 0.0 { c / r } else { 1.0 });
+                    rest_sin.push(if r > 0.0 { s / r } else { 0.0 });
+                }
+                _ => {
+                    weight.push(0.0);
+                    rest_cos.push(1.0);
+                    rest_sin.push(0.0);
+                }
+            }
         }
+        let face_normal_scale: Vec<f64> = face_area2
+            .iter()
+            .map(|&a| if a > 0.0 { 1.0 / a } else { 0.0 })
+            .collect();
         let mut collide = vec![true; n];
         for &i in no_collide {
             collide[i as usize] = false;
@@ -165,11 +221,11 @@ impl GarmentRest {
             face_inv_rest: face_inv,
             face_area2_m2: face_area2,
             hinges,
+            hinge_faces,
             hinge_weight: weight,
             hinge_rest_cos: rest_cos,
             hinge_rest_sin: rest_sin,
-            hinge_normal_eps2: n_eps2,
-            hinge_edge_eps2: e_eps2,
+            face_normal_scale,
             pinned,
             collide,
             total_area_m2,
@@ -182,40 +238,55 @@ impl GarmentRest {
         self.rest_positions.len()
     }
 
-    /// Per-vertex estimate of the diagonal of the Hessian of the in-plane and bending energies
-    /// of `fabric`, in N/m (a Jacobi preconditioner for the reference simulator).
-    pub fn stiffness_diagonal(&self, fabric: &FabricParams, bending: bool) -> Vec<f64> {
-        let mut diag = vec![0.0f64; self.vertex_count()];
+    /// A constant, isotropic approximation `K` (`V x V`, lower-triangle triplets) of the
+    /// Hessian of the in-plane energy of `fabric` near rest, in N/m: the linear-FEM (cotangent)
+    /// Laplacian `2 k_eff Σ_f |c̄_f| g_i·g_j` for triangle models, `2k` springs for mass-spring.
+    /// The reference simulator factors `M/Δt² + K` as its L-BFGS initial metric.
+    pub fn membrane_stiffness_triplets(&self, fabric: &FabricParams) -> Vec<(usize, usize, f64)> {
+        let mut out = Vec::new();
+        let mut add = |a: u32, b: u32, v: f64| {
+            let (a, b) = (a as usize, b as usize);
+            if a == b {
+                out.push((a, a, v));
+            } else {
+                out.extend([(a, a, v), (b, b, v), (a.max(b), a.min(b), -v)]);
+            }
+        };
         match fabric.cloth_model {
             ClothModel::MassSpring => {
                 let k = 2.0 * f64::from(fabric.stretch_stiffness);
                 for &[a, b] in &self.edges {
-                    diag[a as usize] += k;
-                    diag[b as usize] += k;
+                    add(a, b, k);
                 }
             }
             ClothModel::BaraffWitkin | ClothModel::Stvk => {
-                let k = 2.0 * f64::from(fabric.membrane_stiffness());
-                for ((face, inv), &a2) in self.faces.iter().zip(&self.face_inv_rest).zip(&self.face_area2_m2) {
+                let k_eff = match fabric.cloth_model {
+                    ClothModel::Stvk => {
+                        f64::from(fabric.lame_mu) + 0.5 * f64::from(fabric.lame_lambda)
+                    }
+                    _ => {
+                        f64::from(fabric.stretch_stiffness)
+                            + 0.5 * f64::from(fabric.shear_stiffness)
+                    }
+                };
+                for ((face, inv), &a2) in self
+                    .faces
+                    .iter()
+                    .zip(&self.face_inv_rest)
+                    .zip(&self.face_area2_m2)
+                {
                     let [c00, c01, c10, c11] = *inv;
-                    let coef = [(c00 + c10).powi(2) + (c01 + c11).powi(2), c00 * c00 + c01 * c01, c10 * c10 + c11 * c11];
-                    for (&i, c) in face.iter().zip(coef) {
-                        diag[i as usize] += k * a2 * c;
+                    let g = [[-(c00 + c10), -(c01 + c11)], [c00, c01], [c10, c11]];
+                    // K_ij = 2 k a2 g_i·g_j = Σ_{i<j} w_ij (e_i - e_j)(e_i - e_j)ᵀ with w_ij = -K_ij,
+                    // since every row of K sums to zero.
+                    for (i, j) in [(0, 1), (1, 2), (0, 2)] {
+                        let w = -2.0 * k_eff * a2 * (g[i][0] * g[j][0] + g[i][1] * g[j][1]);
+                        add(face[i], face[j], w);
                     }
                 }
             }
         }
-        if bending {
-            // |dθ/dx| ~ 1/height and a typical height is ~0.87 of the mean edge length.
-            let h2 = 0.75 * self.mean_edge_m * self.mean_edge_m;
-            let kb = if h2 > 0.0 { 2.0 * f64::from(fabric.bending_stiffness) / h2 } else { 0.0 };
-            for (h, &w) in self.hinges.iter().zip(&self.hinge_weight) {
-                for &i in h {
-                    diag[i as usize] += kb * w;
-                }
-            }
-        }
-        diag
+        out
     }
 }
 
@@ -225,7 +296,10 @@ fn rest_frame(a: V64, b: V64, c: V64) -> (f64, [f64; 4]) {
     let (e1, e2) = (b - a, c - a);
     let cross = e1.cross(&e2);
     let area2 = cross.norm();
-    let lmax2 = e1.norm_squared().max(e2.norm_squared()).max((c - b).norm_squared());
+    let lmax2 = e1
+        .norm_squared()
+        .max(e2.norm_squared())
+        .max((c - b).norm_squared());
     if !(area2.is_finite() && lmax2 > 0.0 && area2 > DEGENERATE_RELATIVE_AREA * lmax2) {
         return (0.0, [0.0; 4]);
     }
@@ -244,17 +318,6 @@ fn rest_frame(a: V64, b: V64, c: V64) -> (f64, [f64; 4]) {
     }
     let inv = [b2 / det, -a2 / det, -b1 / det, a1 / det];
     (area2, inv)
-}
-
-/// Signed dihedral as an unnormalised `(sin, cos)` pair, same convention as
-/// [`crate::geometry::topology::dihedral_angle`].
-fn dihedral_sin_cos(e0: V64, e1: V64, o0: V64, o1: V64) -> (f64, f64) {
-    let edge = e1 - e0;
-    let n0 = edge.cross(&(o0 - e0));
-    let n1 = (o1 - e0).cross(&edge);
-    let len = edge.norm();
-    let sin = if len > 0.0 { n0.cross(&n1).dot(&edge) / len } else { 0.0 };
-    (sin, n0.dot(&n1))
 }
 
 #[cfg(test)]
@@ -295,7 +358,11 @@ mod tests {
             let inv = inv.map(|c| c as f32);
             let wu = d1 * inv[0] + d2 * inv[2];
             let wv = d1 * inv[1] + d2 * inv[3];
-            assert!((wu.norm() - 1.0).abs() < 1e-5 && (wv.norm() - 1.0).abs() < 1e-5 && wu.dot(&wv).abs() < 1e-5);
+            assert!(
+                (wu.norm() - 1.0).abs() < 1e-5
+                    && (wv.norm() - 1.0).abs() < 1e-5
+                    && wu.dot(&wv).abs() < 1e-5
+            );
         }
         assert!(rest.hinge_weight.iter().all(|w| *w > 0.0));
         assert!(rest.hinge_rest_sin.iter().all(|s| s.abs() < 1e-6));
@@ -305,8 +372,11 @@ mod tests {
     fn degenerate_triangles_get_zero_weight_and_finite_frames() {
         // Face 0 is collinear, face 2 has two coincident vertices; both hinges touch one of them.
         let z = Vec3::new(0.0, 0.0, 1.0);
-        let mesh = TriMesh::new(vec![Vec3::zeros(), Vec3::x(), Vec3::x() * 2.0, z, z], vec![[0, 1, 2], [1, 0, 3], [3, 1, 4]])
-            .unwrap();
+        let mesh = TriMesh::new(
+            vec![Vec3::zeros(), Vec3::x(), Vec3::x() * 2.0, z, z],
+            vec![[0, 1, 2], [1, 0, 3], [3, 1, 4]],
+        )
+        .unwrap();
         let topo = Topology::new(&mesh);
         let rest = GarmentRest::new(&mesh, &topo, &[0], &[], 0.15).unwrap();
         assert_eq!(rest.face_area2_m2[0], 0.0);
@@ -323,10 +393,17 @@ mod tests {
     #[test]
     fn z_normal_faces_have_a_frame() {
         for sign in [1.0f32, -1.0] {
-            let mesh = TriMesh::new(vec![Vec3::zeros(), Vec3::x(), Vec3::new(0.0, sign, 0.0)], vec![[0, 1, 2]]).unwrap();
+            let mesh = TriMesh::new(
+                vec![Vec3::zeros(), Vec3::x(), Vec3::new(0.0, sign, 0.0)],
+                vec![[0, 1, 2]],
+            )
+            .unwrap();
             let rest = GarmentRest::new(&mesh, &Topology::new(&mesh), &[], &[], 0.15).unwrap();
             assert!((rest.face_area2_m2[0] - 1.0).abs() < 1e-6);
-            assert!(rest.face_inv_rest[0].iter().all(|v| v.is_finite()) && rest.face_inv_rest[0] != [0.0; 4]);
+            assert!(
+                rest.face_inv_rest[0].iter().all(|v| v.is_finite())
+                    && rest.face_inv_rest[0] != [0.0; 4]
+            );
         }
     }
 }

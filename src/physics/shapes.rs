@@ -28,7 +28,11 @@ pub fn sheet(nu: usize, nv: usize, origin: Vec3, u_m: Vec3, v_m: Vec3) -> TriMes
             }
         }
     }
-    TriMesh { positions, faces, uvs: None }
+    TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    }
 }
 
 /// A closed UV sphere with `rings >= 2` latitude bands and `segments >= 3` longitudes, outward
@@ -63,18 +67,33 @@ pub fn uv_sphere(center: Vec3, radius_m: f32, rings: usize, segments: usize) -> 
     for s in 0..seg {
         faces.push([bottom, at(last, s + 1), at(last, s)]);
     }
-    TriMesh { positions, faces, uvs: None }
+    TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    }
 }
 
 /// An open vertical tube (no caps) around the Y axis through `center`: `around >= 3` segments,
 /// `rows >= 1` bands between `y_bottom` and `y_top`, radius growing linearly from `r_top` to
 /// `r_bottom` (a flared skirt when `r_bottom > r_top`). Normals point outwards.
-pub fn tube(center: Vec3, r_top_m: f32, r_bottom_m: f32, y_top_m: f32, y_bottom_m: f32, around: usize, rows: usize) -> TriMesh {
+pub fn tube(
+    center: Vec3,
+    r_top_m: f32,
+    r_bottom_m: f32,
+    y_top_m: f32,
+    y_bottom_m: f32,
+    around: usize,
+    rows: usize,
+) -> TriMesh {
     let (around, rows) = (around.max(3), rows.max(1));
     let mut positions = Vec::with_capacity(around * (rows + 1));
     for j in 0..=rows {
         let t = j as f32 / rows as f32;
-        let (r, y) = (r_top_m + (r_bottom_m - r_top_m) * t, y_top_m + (y_bottom_m - y_top_m) * t);
+        let (r, y) = (
+            r_top_m + (r_bottom_m - r_top_m) * t,
+            y_top_m + (y_bottom_m - y_top_m) * t,
+        );
         for i in 0..around {
             let theta = std::f32::consts::TAU * i as f32 / around as f32;
             positions.push(center + Vec3::new(r * theta.cos(), y, -r * theta.sin()));
@@ -90,7 +109,11 @@ pub fn tube(center: Vec3, r_top_m: f32, r_bottom_m: f32, y_top_m: f32, y_bottom_
             faces.push([a, d, b]);
         }
     }
-    TriMesh { positions, faces, uvs: None }
+    TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    }
 }
 
 #[cfg(test)]

@@ -36,10 +36,12 @@ pub struct RestTensors {
     pub face_inv: Option<[Tensor<3>; 4]>,
     /// `|cross|` at rest `[1, F, 1]` in m².
     pub face_area2: Option<Tensor<3>>,
-    /// Hinge vertices `e0, e1, o0, o1`.
+    /// Hinge edge vertices `e0, e1` and faces `f0, f1`.
     pub hinge: Option<[Tensor<1, Int>; 4]>,
-    /// Hinge constants: weight, rest cos, rest sin, normal eps², edge eps², each `[1, H, 1]`.
-    pub hinge_consts: Option<[Tensor<3>; 5]>,
+    /// Hinge constants: weight, rest cos, rest sin, each `[1, H, 1]`.
+    pub hinge_consts: Option<[Tensor<3>; 3]>,
+    /// `1/|c̄_f|` per face `[1, F, 1]` (uploaded with the hinges).
+    pub face_normal_scale: Option<Tensor<3>>,
     /// Pinned vertex indices (None when there are none or pinning is off).
     pub pinned: Option<Tensor<1, Int>>,
     /// 1 for colliding vertices, 0 for no-collide ones, `[1, V, 1]`.
@@ -50,7 +52,13 @@ pub struct RestTensors {
 
 impl RestTensors {
     /// Uploads what `effects` need (membrane terms and masses always).
-    pub fn new(rest: &GarmentRest, gravity: Vec3, effects: &Effects, device: &Device, dtype: DType) -> Self {
+    pub fn new(
+        rest: &GarmentRest,
+        gravity: Vec3,
+        effects: &Effects,
+        device: &Device,
+        dtype: DType,
+    ) -> Self {
         let col = |v: &[f64]| column(v, device, dtype);
         let ne = rest.edges.len();
         let nf = rest.faces.len();
@@ -58,18 +66,42 @@ impl RestTensors {
         let edge = (ne > 0).then(|| {
             [0, 1].map(|k| index(&rest.edges.iter().map(|e| e[k]).collect::<Vec<_>>(), device))
         });
-        let face = (nf > 0).then(|| [0, 1, 2].map(|k| index(&rest.faces.iter().map(|f| f[k]).collect::<Vec<_>>(), device)));
-        let face_inv = (nf > 0).then(|| [0, 1, 2, 3].map(|k| col(&rest.face_inv_rest.iter().map(|c| c[k]).collect::<Vec<_>>())));
-        let bend = effects.bending && nh > 0;
-        let hinge = bend.then(|| [0, 1, 2, 3].map(|k| index(&rest.hinges.iter().map(|h| h[k]).collect::<Vec<_>>(), device)));
-        let hinge_consts = bend.then(|| {
-            [&rest.hinge_weight, &rest.hinge_rest_cos, &rest.hinge_rest_sin, &rest.hinge_normal_eps2, &rest.hinge_edge_eps2]
-                .map(|v| col(v))
+        let face = (nf > 0).then(|| {
+            [0, 1, 2].map(|k| index(&rest.faces.iter().map(|f| f[k]).collect::<Vec<_>>(), device))
         });
-        let pinned = (effects.pinning && !rest.pinned.is_empty()).then(|| index(&rest.pinned, device));
-        let collide = effects
-            .collision
-            .then(|| col(&rest.collide.iter().map(|&c| if c { 1.0 } else { 0.0 }).collect::<Vec<f64>>()));
+        let face_inv = (nf > 0).then(|| {
+            [0, 1, 2, 3].map(|k| col(&rest.face_inv_rest.iter().map(|c| c[k]).collect::<Vec<_>>()))
+        });
+        let bend = effects.bending && nh > 0;
+        let bend = bend && nf > 0;
+        let hinge = bend.then(|| {
+            let pick =
+                |f: &dyn Fn(usize) -> u32| index(&(0..nh).map(f).collect::<Vec<_>>(), device);
+            [
+                pick(&|h| rest.hinges[h][0]),
+                pick(&|h| rest.hinges[h][1]),
+                pick(&|h| rest.hinge_faces[h][0]),
+                pick(&|h| rest.hinge_faces[h][1]),
+            ]
+        });
+        let hinge_consts = bend.then(|| {
+            [
+                &rest.hinge_weight,
+                &rest.hinge_rest_cos,
+                &rest.hinge_rest_sin,
+            ]
+            .map(|v| col(v))
+        });
+        let face_normal_scale = bend.then(|| col(&rest.face_normal_scale));
+        let pinned =
+            (effects.pinning && !rest.pinned.is_empty()).then(|| index(&rest.pinned, device));
+        let collide = effects.collision.then(|| {
+            col(&rest
+                .collide
+                .iter()
+                .map(|&c| if c { 1.0 } else { 0.0 })
+                .collect::<Vec<f64>>())
+        });
         Self {
             device: device.clone(),
             dtype,
@@ -83,9 +115,13 @@ impl RestTensors {
             face_area2: (nf > 0).then(|| col(&rest.face_area2_m2)),
             hinge,
             hinge_consts,
+            face_normal_scale,
             pinned,
             collide,
-            gravity: Tensor::from_data(TensorData::new(vec![gravity.x, gravity.y, gravity.z], [1, 1, 3]), (device, dtype)),
+            gravity: Tensor::from_data(
+                TensorData::new(vec![gravity.x, gravity.y, gravity.z], [1, 1, 3]),
+                (device, dtype),
+            ),
         }
     }
 
@@ -110,7 +146,10 @@ impl RestTensors {
 
 /// `[1, N, 1]` float tensor.
 pub fn column(values: &[f64], device: &Device, dtype: DType) -> Tensor<3> {
-    Tensor::from_data(TensorData::new(values.to_vec(), [1, values.len(), 1]), (device, dtype))
+    Tensor::from_data(
+        TensorData::new(values.to_vec(), [1, values.len(), 1]),
+        (device, dtype),
+    )
 }
 
 /// 1-D index tensor.
@@ -141,27 +180,42 @@ pub fn gather(x: &Tensor<3>, idx: &Tensor<1, Int>) -> Tensor<3> {
 }
 
 /// Uploads a batch of position arrays (all the same length) as `[B, V, 3]`.
-pub fn positions_tensor(frames: &[&[Vec3]], device: &Device, dtype: DType) -> Result<Tensor<3>, PhysicsError> {
+pub fn positions_tensor(
+    frames: &[&[Vec3]],
+    device: &Device,
+    dtype: DType,
+) -> Result<Tensor<3>, PhysicsError> {
     let v = frames.first().map_or(0, |f| f.len());
     if frames.is_empty() || frames.iter().any(|f| f.len() != v) {
         return Err(PhysicsError::ShapeMismatch {
             what: "position batch".into(),
             expected: format!("{} frames of {v} vertices", frames.len().max(1)),
-            found: format!("lengths {:?}", frames.iter().map(|f| f.len()).collect::<Vec<_>>()),
+            found: format!(
+                "lengths {:?}",
+                frames.iter().map(|f| f.len()).collect::<Vec<_>>()
+            ),
         });
     }
-    let flat: Vec<f32> = frames.iter().flat_map(|f| f.iter().flat_map(|p| [p.x, p.y, p.z])).collect();
-    Ok(Tensor::from_data(TensorData::new(flat, [frames.len(), v, 3]), (device, dtype)))
+    let flat: Vec<f32> = frames
+        .iter()
+        .flat_map(|f| f.iter().flat_map(|p| [p.x, p.y, p.z]))
+        .collect();
+    Ok(Tensor::from_data(
+        TensorData::new(flat, [frames.len(), v, 3]),
+        (device, dtype),
+    ))
 }
 
 /// Reads a tensor back as `f32` values (any float dtype).
 pub fn read_f32<const D: usize>(t: Tensor<D>) -> Result<Vec<f32>, PhysicsError> {
-    t.try_into_vec_as::<f32>().map_err(|e| PhysicsError::Backend(e.to_string()))
+    t.try_into_vec_as::<f32>()
+        .map_err(|e| PhysicsError::Backend(e.to_string()))
 }
 
 /// Reads a tensor back as `f64` values (any float dtype).
 pub fn read_f64<const D: usize>(t: Tensor<D>) -> Result<Vec<f64>, PhysicsError> {
-    t.try_into_vec_as::<f64>().map_err(|e| PhysicsError::Backend(e.to_string()))
+    t.try_into_vec_as::<f64>()
+        .map_err(|e| PhysicsError::Backend(e.to_string()))
 }
 
 /// Reads `[B, V, 3]` positions back as one `Vec<Vec3>` per sample.
@@ -170,6 +224,10 @@ pub fn read_positions(t: Tensor<3>) -> Result<Vec<Vec<Vec3>>, PhysicsError> {
     let flat = read_f32(t)?;
     Ok(flat
         .chunks_exact(v * 3)
-        .map(|s| s.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect())
+        .map(|s| {
+            s.chunks_exact(3)
+                .map(|p| Vec3::new(p[0], p[1], p[2]))
+                .collect()
+        })
         .collect())
 }

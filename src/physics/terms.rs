@@ -58,7 +58,10 @@ pub struct LossTerms {
 impl LossTerms {
     /// Sum of all terms (None when empty).
     pub fn total(&self) -> Option<Tensor<1>> {
-        self.terms.iter().map(|(_, t)| t.clone()).reduce(|a, b| a + b)
+        self.terms
+            .iter()
+            .map(|(_, t)| t.clone())
+            .reduce(|a, b| a + b)
     }
 
     /// The term `term`, if present.
@@ -75,7 +78,15 @@ impl LossTerms {
     pub fn values(&self) -> Result<Vec<(Term, f64)>, PhysicsError> {
         self.terms
             .iter()
-            .map(|(t, v)| Ok((*t, read_f64(v.clone().detach())?.first().copied().unwrap_or(0.0))))
+            .map(|(t, v)| {
+                Ok((
+                    *t,
+                    read_f64(v.clone().detach())?
+                        .first()
+                        .copied()
+                        .unwrap_or(0.0),
+                ))
+            })
             .collect()
     }
 }
@@ -91,7 +102,12 @@ pub struct PhysicsTerms {
 
 impl PhysicsTerms {
     /// Builds the terms of `garment` on `device` with the device's default float dtype.
-    pub fn new(garment: &Garment, fabric: &FabricParams, effects: &Effects, device: &Device) -> Result<Self, PhysicsError> {
+    pub fn new(
+        garment: &Garment,
+        fabric: &FabricParams,
+        effects: &Effects,
+        device: &Device,
+    ) -> Result<Self, PhysicsError> {
         fabric.validate()?;
         let rest = GarmentRest::from_garment(garment, fabric)?;
         let dtype = device.settings().float_dtype.into();
@@ -109,7 +125,12 @@ impl PhysicsTerms {
     ) -> Result<Self, PhysicsError> {
         fabric.validate()?;
         let tensors = RestTensors::new(&rest, fabric.gravity(), effects, device, dtype);
-        Ok(Self { rest, fabric: fabric.clone(), effects: *effects, tensors })
+        Ok(Self {
+            rest,
+            fabric: fabric.clone(),
+            effects: *effects,
+            tensors,
+        })
     }
 
     /// The rest state.
@@ -153,18 +174,29 @@ impl PhysicsTerms {
         let f = &self.fabric;
         let rt = &self.tensors;
         match f.cloth_model {
-            ClothModel::MassSpring => vec![(Term::Stretch, energies::mass_spring(x, rt, f.stretch_stiffness))],
+            ClothModel::MassSpring => vec![(
+                Term::Stretch,
+                energies::mass_spring(x, rt, f.stretch_stiffness),
+            )],
             ClothModel::BaraffWitkin => {
-                let (stretch, shear) = energies::baraff_witkin(x, rt, f.stretch_stiffness, f.shear_stiffness);
+                let (stretch, shear) =
+                    energies::baraff_witkin(x, rt, f.stretch_stiffness, f.shear_stiffness);
                 vec![(Term::Stretch, stretch), (Term::Shear, shear)]
             }
-            ClothModel::Stvk => vec![(Term::Stretch, energies::stvk(x, rt, f.lame_lambda, f.lame_mu))],
+            ClothModel::Stvk => vec![(
+                Term::Stretch,
+                energies::stvk(x, rt, f.lame_lambda, f.lame_mu),
+            )],
         }
     }
 
     /// Every enabled static energy per sample (`[B]` each): cloth, bending, collision (with
     /// `contacts`, required when collision is on), gravity.
-    pub fn static_energies(&self, x: &Tensor<3>, contacts: Option<&Contacts>) -> Result<Vec<(Term, Tensor<1>)>, PhysicsError> {
+    pub fn static_energies(
+        &self,
+        x: &Tensor<3>,
+        contacts: Option<&Contacts>,
+    ) -> Result<Vec<(Term, Tensor<1>)>, PhysicsError> {
         self.tensors.batch_of(x)?;
         let f = &self.fabric;
         let rt = &self.tensors;
@@ -174,7 +206,16 @@ impl PhysicsTerms {
         }
         if self.effects.collision {
             let contacts = contacts.ok_or(PhysicsError::MissingBody)?;
-            out.push((Term::Collision, collision::collision(x, contacts, rt, f.collision_stiffness, f.collision_threshold_m)));
+            out.push((
+                Term::Collision,
+                collision::collision(
+                    x,
+                    contacts,
+                    rt,
+                    f.collision_stiffness,
+                    f.collision_threshold_m,
+                ),
+            ));
         }
         if self.effects.gravity {
             out.push((Term::Gravity, energies::gravity(x, rt)));
@@ -184,7 +225,11 @@ impl PhysicsTerms {
 
     /// Static losses of the last predicted frame `x` (`[B, V, 3]`), batch means. `body` is
     /// required when collision is on (its nearest-vertex query runs here).
-    pub fn static_losses(&self, x: &Tensor<3>, body: Option<&BodyBatch>) -> Result<LossTerms, PhysicsError> {
+    pub fn static_losses(
+        &self,
+        x: &Tensor<3>,
+        body: Option<&BodyBatch>,
+    ) -> Result<LossTerms, PhysicsError> {
         let contacts = match (self.effects.collision, body) {
             (true, Some(body)) => Some(self.contacts(x, body)?),
             (true, None) => return Err(PhysicsError::MissingBody),
@@ -194,14 +239,26 @@ impl PhysicsTerms {
     }
 
     /// Like [`Self::static_losses`] with precomputed contacts.
-    pub fn static_losses_with(&self, x: &Tensor<3>, contacts: Option<&Contacts>) -> Result<LossTerms, PhysicsError> {
+    pub fn static_losses_with(
+        &self,
+        x: &Tensor<3>,
+        contacts: Option<&Contacts>,
+    ) -> Result<LossTerms, PhysicsError> {
         let terms = self.static_energies(x, contacts)?;
-        Ok(LossTerms { terms: terms.into_iter().map(|(t, v)| (t, v.mean())).collect() })
+        Ok(LossTerms {
+            terms: terms.into_iter().map(|(t, v)| (t, v.mean())).collect(),
+        })
     }
 
     /// Inertia loss (batch mean) of `x_t` given the two previous frames; gradients reach only
     /// `x_t`. None when dynamics is off.
-    pub fn inertia(&self, x_t: &Tensor<3>, x_t1: &Tensor<3>, x_t2: &Tensor<3>, dt_secs: f32) -> Option<Tensor<1>> {
+    pub fn inertia(
+        &self,
+        x_t: &Tensor<3>,
+        x_t1: &Tensor<3>,
+        x_t2: &Tensor<3>,
+        dt_secs: f32,
+    ) -> Option<Tensor<1>> {
         self.effects
             .dynamics
             .then(|| energies::inertia(x_t, x_t1, x_t2, &self.tensors, dt_secs).mean())

@@ -56,7 +56,12 @@ impl OrbitCamera {
             distance_m,
             fov_y_rad: 40f32.to_radians(),
             near_m: 0.02,
-            home: OrbitHome { target, yaw_rad, pitch_rad, distance_m },
+            home: OrbitHome {
+                target,
+                yaw_rad,
+                pitch_rad,
+                distance_m,
+            },
         };
         cam.sanitize();
         cam.set_home();
@@ -121,7 +126,8 @@ impl OrbitCamera {
         if !(dx_px.is_finite() && dy_px.is_finite() && viewport_height_px > 0.0) {
             return;
         }
-        let metres_per_px = 2.0 * self.distance_m * (self.fov_y_rad * 0.5).tan() / viewport_height_px;
+        let metres_per_px =
+            2.0 * self.distance_m * (self.fov_y_rad * 0.5).tan() / viewport_height_px;
         let (right, up) = self.right_up();
         self.target += (-right * dx_px + up * dy_px) * metres_per_px;
     }
@@ -168,7 +174,11 @@ impl OrbitCamera {
     /// `clip_from_view`: reversed-Z infinite perspective for an `aspect` = width / height
     /// viewport (wgpu depth range 0..1, depth 1 at the near plane).
     pub fn clip_from_view(&self, aspect: f32) -> Mat4 {
-        let aspect = if aspect.is_finite() && aspect > 1e-6 { aspect } else { 1.0 };
+        let aspect = if aspect.is_finite() && aspect > 1e-6 {
+            aspect
+        } else {
+            1.0
+        };
         let f = 1.0 / (self.fov_y_rad * 0.5).tan();
         #[rustfmt::skip]
         let m = Mat4::new(
@@ -193,8 +203,16 @@ impl OrbitCamera {
         if !self.yaw_rad.is_finite() {
             self.yaw_rad = 0.0;
         }
-        self.pitch_rad = if self.pitch_rad.is_finite() { self.pitch_rad.clamp(-MAX_PITCH_RAD, MAX_PITCH_RAD) } else { 0.0 };
-        self.distance_m = if self.distance_m.is_finite() { self.distance_m.clamp(MIN_DISTANCE_M, MAX_DISTANCE_M) } else { 3.0 };
+        self.pitch_rad = if self.pitch_rad.is_finite() {
+            self.pitch_rad.clamp(-MAX_PITCH_RAD, MAX_PITCH_RAD)
+        } else {
+            0.0
+        };
+        self.distance_m = if self.distance_m.is_finite() {
+            self.distance_m.clamp(MIN_DISTANCE_M, MAX_DISTANCE_M)
+        } else {
+            3.0
+        };
         if !(self.fov_y_rad.is_finite() && self.fov_y_rad > 0.01 && self.fov_y_rad < 3.0) {
             self.fov_y_rad = 40f32.to_radians();
         }
@@ -256,7 +274,11 @@ mod tests {
         let mut cam = OrbitCamera::new(Vec3::zeros(), 0.0, 0.0, 2.0);
         let half_height = 2.0 * (cam.fov_y_rad * 0.5).tan();
         cam.pan(0.0, 400.0, 400.0);
-        assert!((cam.target.y - 2.0 * half_height).abs() < 1e-4, "{:?}", cam.target);
+        assert!(
+            (cam.target.y - 2.0 * half_height).abs() < 1e-4,
+            "{:?}",
+            cam.target
+        );
     }
 
     #[test]
@@ -271,7 +293,10 @@ mod tests {
                 if corner & 4 == 0 { lo.z } else { hi.z },
             );
             let ndc = project(&cam, p);
-            assert!(ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0 && ndc.z > 0.0, "{corner}: {ndc:?}");
+            assert!(
+                ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0 && ndc.z > 0.0,
+                "{corner}: {ndc:?}"
+            );
         }
         let mut unchanged = cam;
         unchanged.frame_bounds(hi, lo);

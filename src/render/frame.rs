@@ -26,7 +26,13 @@ impl MeshFrame {
     /// A mesh with normals computed from `positions` and `faces`.
     pub fn new(positions: Vec<Vec3>, faces: Arc<[[u32; 3]]>, edges: Arc<[[u32; 2]]>) -> Self {
         let normals = vertex_normals(&positions, &faces);
-        Self { positions, normals, faces, edges, colors: None }
+        Self {
+            positions,
+            normals,
+            faces,
+            edges,
+            colors: None,
+        }
     }
 
     /// Axis-aligned bounds of the finite positions, or `None` when there are none.
@@ -52,24 +58,46 @@ impl SceneFrame {
     /// Builds a frame from an avatar in `pose` and, optionally, a garment whose posed
     /// positions are `garment_positions` (e.g. from the model); without positions the garment
     /// is shown skinned by `pose` (its template, no neural offsets).
-    pub fn from_scene(avatar: &Avatar, pose: &Pose, garment: Option<&Garment>, garment_positions: Option<Vec<Vec3>>) -> Self {
+    pub fn from_scene(
+        avatar: &Avatar,
+        pose: &Pose,
+        garment: Option<&Garment>,
+        garment_positions: Option<Vec<Vec3>>,
+    ) -> Self {
         let body_faces: Arc<[[u32; 3]]> = avatar.bind_mesh.faces.clone().into();
-        let body = MeshFrame::new(avatar.pose_vertices(pose), body_faces, Arc::from(Vec::new()));
+        let body = MeshFrame::new(
+            avatar.pose_vertices(pose),
+            body_faces,
+            Arc::from(Vec::new()),
+        );
         let garment = garment.map(|g| {
             let positions = match garment_positions {
                 Some(p) if p.len() == g.vertex_count() => p,
                 _ => g.pose_vertices(avatar, pose),
             };
-            MeshFrame::new(positions, g.mesh.faces.clone().into(), g.topology.edges.clone().into())
+            MeshFrame::new(
+                positions,
+                g.mesh.faces.clone().into(),
+                g.topology.edges.clone().into(),
+            )
         });
         let ground_y = avatar.rest_mesh.bounds().map(|(lo, _)| lo.y).unwrap_or(0.0);
-        Self { body: Some(body), garment, collision_points: Vec::new(), ground_y }
+        Self {
+            body: Some(body),
+            garment,
+            collision_points: Vec::new(),
+            ground_y,
+        }
     }
 
     /// Bounds of body and garment together.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let parts = [self.body.as_ref(), self.garment.as_ref()];
-        parts.iter().flatten().filter_map(|m| m.bounds()).reduce(|(a, b), (c, d)| (a.inf(&c), b.sup(&d)))
+        parts
+            .iter()
+            .flatten()
+            .filter_map(|m| m.bounds())
+            .reduce(|(a, b), (c, d)| (a.inf(&c), b.sup(&d)))
     }
 }
 
@@ -102,7 +130,10 @@ pub fn vertex_normals(positions: &[Vec3], faces: &[[u32; 3]]) -> Vec<Vec3> {
             }
         }
     }
-    normals.into_iter().map(|n| safe_normalize(n).unwrap_or_else(Vec3::y)).collect()
+    normals
+        .into_iter()
+        .map(|n| safe_normalize(n).unwrap_or_else(Vec3::y))
+        .collect()
 }
 
 #[cfg(test)]
@@ -111,18 +142,31 @@ mod tests {
 
     #[test]
     fn normals_of_a_quad_and_a_bad_face() {
-        let positions = vec![Vec3::zeros(), Vec3::x(), Vec3::new(1.0, 1.0, 0.0), Vec3::y(), Vec3::z()];
+        let positions = vec![
+            Vec3::zeros(),
+            Vec3::x(),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::y(),
+            Vec3::z(),
+        ];
         let n = vertex_normals(&positions, &[[0, 1, 2], [0, 2, 3], [0, 1, 7]]);
-        for k in 0..4 {
-            assert!((n[k] - Vec3::z()).norm() < 1e-6);
+        for normal in n.iter().take(4) {
+            assert!((normal - Vec3::z()).norm() < 1e-6);
         }
         assert_eq!(n[4], Vec3::y());
     }
 
     #[test]
     fn bounds_skip_non_finite_points() {
-        let b = bounds_of(&[Vec3::new(1.0, 2.0, 3.0), Vec3::new(f32::NAN, 0.0, 0.0), Vec3::new(-1.0, 0.0, 5.0)]);
-        assert_eq!(b, Some((Vec3::new(-1.0, 0.0, 3.0), Vec3::new(1.0, 2.0, 5.0))));
+        let b = bounds_of(&[
+            Vec3::new(1.0, 2.0, 3.0),
+            Vec3::new(f32::NAN, 0.0, 0.0),
+            Vec3::new(-1.0, 0.0, 5.0),
+        ]);
+        assert_eq!(
+            b,
+            Some((Vec3::new(-1.0, 0.0, 3.0), Vec3::new(1.0, 2.0, 5.0)))
+        );
         assert_eq!(bounds_of(&[]), None);
     }
 }

@@ -47,7 +47,11 @@ pub struct PointInstance {
 
 /// Converts an sRGB-encoded colour channel in 0..1 to linear.
 pub fn linear_from_srgb(c: f32) -> f32 {
-    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
 }
 
 /// Converts an sRGB 8-bit colour to linear RGBA with alpha 1.
@@ -59,19 +63,29 @@ pub fn linear_rgba(r: u8, g: u8, b: u8) -> [f32; 4] {
 /// Heat-map colour (linear RGBA) for `value` in `[0, max]`: blue (0) through cyan, green and
 /// yellow to red (`max` or more). Non-finite values and a non-positive `max` give blue.
 pub fn heat_color(value: f32, max: f32) -> [f32; 4] {
-    let t = if value.is_finite() && max > 0.0 { (value / max).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if value.is_finite() && max > 0.0 {
+        (value / max).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     // Piecewise-linear stops in sRGB space, then converted to linear.
-    const STOPS: [(f32, [u8; 3]); 5] =
-        [(0.0, [40, 70, 200]), (0.25, [40, 180, 220]), (0.5, [70, 200, 90]), (0.75, [240, 210, 50]), (1.0, [220, 40, 40])];
+    const STOPS: [(f32, [u8; 3]); 5] = [
+        (0.0, [40, 70, 200]),
+        (0.25, [40, 180, 220]),
+        (0.5, [70, 200, 90]),
+        (0.75, [240, 210, 50]),
+        (1.0, [220, 40, 40]),
+    ];
     let mut lo = STOPS[0];
     let mut hi = STOPS[STOPS.len() - 1];
     for pair in STOPS.windows(2) {
-        if let [a, b] = pair {
-            if t >= a.0 && t <= b.0 {
-                lo = *a;
-                hi = *b;
-                break;
-            }
+        if let [a, b] = pair
+            && t >= a.0
+            && t <= b.0
+        {
+            lo = *a;
+            hi = *b;
+            break;
         }
     }
     let span = hi.0 - lo.0;
@@ -86,7 +100,11 @@ pub fn heat_color(value: f32, max: f32) -> [f32; 4] {
 /// Averages per-edge values (e.g. strain) onto vertices: each vertex gets the mean of the
 /// values of its incident edges (0 for isolated vertices). Edges with an out-of-range vertex
 /// and non-finite values are skipped; extra or missing values are ignored.
-pub fn vertex_values_from_edges(vertex_count: usize, edges: &[[u32; 2]], values: &[f32]) -> Vec<f32> {
+pub fn vertex_values_from_edges(
+    vertex_count: usize,
+    edges: &[[u32; 2]],
+    values: &[f32],
+) -> Vec<f32> {
     let mut sum = vec![0.0f32; vertex_count];
     let mut count = vec![0u32; vertex_count];
     for (edge, &v) in edges.iter().zip(values) {
@@ -100,7 +118,10 @@ pub fn vertex_values_from_edges(vertex_count: usize, edges: &[[u32; 2]], values:
             }
         }
     }
-    sum.iter().zip(&count).map(|(s, &c)| if c > 0 { s / c as f32 } else { 0.0 }).collect()
+    sum.iter()
+        .zip(&count)
+        .map(|(s, &c)| if c > 0 { s / c as f32 } else { 0.0 })
+        .collect()
 }
 
 #[cfg(test)]

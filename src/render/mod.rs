@@ -25,7 +25,9 @@ pub use target::RenderTarget;
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
     /// No usable GPU adapter or device (no driver, no Vulkan/Metal/DX12/GL implementation).
-    #[error("no usable GPU adapter: {0} (on Linux without a GPU, install Mesa's lavapipe: mesa-vulkan-drivers)")]
+    #[error(
+        "no usable GPU adapter: {0} (on Linux without a GPU, install Mesa's lavapipe: mesa-vulkan-drivers)"
+    )]
     NoAdapter(String),
     /// A mesh cannot be drawn.
     #[error("cannot draw mesh '{name}': {reason}")]

@@ -47,7 +47,11 @@ fn uniform_layout(device: &wgpu::Device, label: &str) -> wgpu::BindGroupLayout {
         entries: &[wgpu::BindGroupLayoutEntry {
             binding: 0,
             visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
             count: None,
         }],
     })
@@ -61,20 +65,43 @@ fn module(device: &wgpu::Device, name: &str, source: String) -> wgpu::ShaderModu
 }
 
 const fn vec3_stream(location: u32) -> [wgpu::VertexAttribute; 1] {
-    [wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: location }]
+    [wgpu::VertexAttribute {
+        format: wgpu::VertexFormat::Float32x3,
+        offset: 0,
+        shader_location: location,
+    }]
 }
 
 const POSITION_ATTR: [wgpu::VertexAttribute; 1] = vec3_stream(0);
 const NORMAL_ATTR: [wgpu::VertexAttribute; 1] = vec3_stream(1);
-const COLOR_ATTR: [wgpu::VertexAttribute; 1] =
-    [wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x4, offset: 0, shader_location: 2 }];
+const COLOR_ATTR: [wgpu::VertexAttribute; 1] = [wgpu::VertexAttribute {
+    format: wgpu::VertexFormat::Float32x4,
+    offset: 0,
+    shader_location: 2,
+}];
 const POINT_ATTRS: [wgpu::VertexAttribute; 2] = [
-    wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: 0 },
-    wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x4, offset: 12, shader_location: 1 },
+    wgpu::VertexAttribute {
+        format: wgpu::VertexFormat::Float32x3,
+        offset: 0,
+        shader_location: 0,
+    },
+    wgpu::VertexAttribute {
+        format: wgpu::VertexFormat::Float32x4,
+        offset: 12,
+        shader_location: 1,
+    },
 ];
 
-fn stream(stride: u64, attributes: &'static [wgpu::VertexAttribute], step_mode: wgpu::VertexStepMode) -> Option<wgpu::VertexBufferLayout<'static>> {
-    Some(wgpu::VertexBufferLayout { array_stride: stride, step_mode, attributes })
+fn stream(
+    stride: u64,
+    attributes: &'static [wgpu::VertexAttribute],
+    step_mode: wgpu::VertexStepMode,
+) -> Option<wgpu::VertexBufferLayout<'static>> {
+    Some(wgpu::VertexBufferLayout {
+        array_stride: stride,
+        step_mode,
+        attributes,
+    })
 }
 
 /// Settings that differ between the pipelines.
@@ -89,7 +116,12 @@ struct PipelineSpec<'a> {
     blend: Option<wgpu::BlendState>,
 }
 
-fn pipeline(device: &wgpu::Device, format: wgpu::TextureFormat, samples: u32, spec: PipelineSpec<'_>) -> wgpu::RenderPipeline {
+fn pipeline(
+    device: &wgpu::Device,
+    format: wgpu::TextureFormat,
+    samples: u32,
+    spec: PipelineSpec<'_>,
+) -> wgpu::RenderPipeline {
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(&format!("neural-cloth {} pipeline", spec.name)),
         layout: Some(spec.layout),
@@ -115,12 +147,20 @@ fn pipeline(device: &wgpu::Device, format: wgpu::TextureFormat, samples: u32, sp
             stencil: Default::default(),
             bias: Default::default(),
         }),
-        multisample: wgpu::MultisampleState { count: samples, mask: !0, alpha_to_coverage_enabled: false },
+        multisample: wgpu::MultisampleState {
+            count: samples,
+            mask: !0,
+            alpha_to_coverage_enabled: false,
+        },
         fragment: Some(wgpu::FragmentState {
             module: spec.module,
             entry_point: Some("fs_main"),
             compilation_options: Default::default(),
-            targets: &[Some(wgpu::ColorTargetState { format, blend: spec.blend, write_mask: wgpu::ColorWrites::ALL })],
+            targets: &[Some(wgpu::ColorTargetState {
+                format,
+                blend: spec.blend,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
         }),
         multiview_mask: None,
         cache: None,
@@ -157,7 +197,11 @@ impl Pipelines {
                 name: "mesh",
                 module: &mesh_module,
                 layout: &mesh_layout,
-                buffers: &[stream(12, &POSITION_ATTR, vertex), stream(12, &NORMAL_ATTR, vertex), stream(16, &COLOR_ATTR, vertex)],
+                buffers: &[
+                    stream(12, &POSITION_ATTR, vertex),
+                    stream(12, &NORMAL_ATTR, vertex),
+                    stream(16, &COLOR_ATTR, vertex),
+                ],
                 topology: wgpu::PrimitiveTopology::TriangleList,
                 cull_mode: None,
                 depth_write: true,
@@ -209,7 +253,14 @@ impl Pipelines {
                 blend: None,
             },
         );
-        Self { globals_layout, mesh_params_layout, mesh, lines, points, grid }
+        Self {
+            globals_layout,
+            mesh_params_layout,
+            mesh,
+            lines,
+            points,
+            grid,
+        }
     }
 }
 
@@ -220,9 +271,15 @@ mod tests {
     #[test]
     fn every_shader_parses_and_validates() {
         for (name, source) in shader_sources() {
-            let module = wgpu::naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&source)));
-            let mut validator = wgpu::naga::valid::Validator::new(wgpu::naga::valid::ValidationFlags::all(), wgpu::naga::valid::Capabilities::empty());
-            validator.validate(&module).unwrap_or_else(|e| panic!("{name}: {e:?}"));
+            let module = wgpu::naga::front::wgsl::parse_str(&source)
+                .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&source)));
+            let mut validator = wgpu::naga::valid::Validator::new(
+                wgpu::naga::valid::ValidationFlags::all(),
+                wgpu::naga::valid::Capabilities::empty(),
+            );
+            validator
+                .validate(&module)
+                .unwrap_or_else(|e| panic!("{name}: {e:?}"));
         }
     }
 }

@@ -31,7 +31,14 @@ pub struct DrawOptions {
 
 impl Default for DrawOptions {
     fn default() -> Self {
-        Self { show_body: true, show_garment: true, heat_map: false, wireframe: false, collision_points: false, grid: true }
+        Self {
+            show_body: true,
+            show_garment: true,
+            heat_map: false,
+            wireframe: false,
+            collision_points: false,
+            grid: true,
+        }
     }
 }
 
@@ -67,7 +74,11 @@ impl GpuMesh {
     fn new(device: &wgpu::Device, pipelines: &Pipelines, name: &str, mesh: &MeshFrame) -> Self {
         let usage = wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST;
         let init = |what: &str, contents: &[u8], usage| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(&format!("neural-cloth {name} {what}")), contents, usage })
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(&format!("neural-cloth {name} {what}")),
+                contents,
+                usage,
+            })
         };
         let positions = init("positions", bytemuck::cast_slice(&mesh.positions), usage);
         let normals = init("normals", bytemuck::cast_slice(&mesh.normals), usage);
@@ -80,9 +91,21 @@ impl GpuMesh {
                 mapped_at_creation: false,
             }),
         };
-        let indices = init("indices", bytemuck::cast_slice(&mesh.faces), wgpu::BufferUsages::INDEX);
-        let edge_indices = (!mesh.edges.is_empty())
-            .then(|| (init("edge indices", bytemuck::cast_slice(&mesh.edges), wgpu::BufferUsages::INDEX), (mesh.edges.len() * 2) as u32));
+        let indices = init(
+            "indices",
+            bytemuck::cast_slice(&mesh.faces),
+            wgpu::BufferUsages::INDEX,
+        );
+        let edge_indices = (!mesh.edges.is_empty()).then(|| {
+            (
+                init(
+                    "edge indices",
+                    bytemuck::cast_slice(&mesh.edges),
+                    wgpu::BufferUsages::INDEX,
+                ),
+                (mesh.edges.len() * 2) as u32,
+            )
+        });
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(&format!("neural-cloth {name} params")),
             size: std::mem::size_of::<MeshParams>() as u64,
@@ -92,7 +115,10 @@ impl GpuMesh {
         let params_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(&format!("neural-cloth {name} params group")),
             layout: &pipelines.mesh_params_layout,
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() }],
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: params.as_entire_binding(),
+            }],
         });
         Self {
             faces: mesh.faces.clone(),
@@ -130,24 +156,40 @@ impl GpuMesh {
 /// Checks that a mesh is drawable: matching lengths, indices in range, something to draw.
 fn validate(name: &str, mesh: &MeshFrame) -> Result<(), RenderError> {
     let n = mesh.positions.len();
-    let bad = |reason: String| Err(RenderError::InvalidMesh { name: name.to_owned(), reason });
+    let bad = |reason: String| {
+        Err(RenderError::InvalidMesh {
+            name: name.to_owned(),
+            reason,
+        })
+    };
     if n == 0 || mesh.faces.is_empty() {
-        return bad(format!("{n} vertices and {} faces: nothing to draw", mesh.faces.len()));
+        return bad(format!(
+            "{n} vertices and {} faces: nothing to draw",
+            mesh.faces.len()
+        ));
     }
     if mesh.normals.len() != n {
         return bad(format!("{} normals for {n} vertices", mesh.normals.len()));
     }
-    if let Some(c) = &mesh.colors {
-        if c.len() != n {
-            return bad(format!("{} colours for {n} vertices", c.len()));
-        }
+    if let Some(c) = &mesh.colors
+        && c.len() != n
+    {
+        return bad(format!("{} colours for {n} vertices", c.len()));
     }
     let max_face = mesh.faces.iter().flatten().max().copied().unwrap_or(0);
     let max_edge = mesh.edges.iter().flatten().max().copied().unwrap_or(0);
     if max_face.max(max_edge) as usize >= n {
-        return bad(format!("index {} out of range for {n} vertices", max_face.max(max_edge)));
+        return bad(format!(
+            "index {} out of range for {n} vertices",
+            max_face.max(max_edge)
+        ));
     }
-    if !mesh.positions.iter().chain(&mesh.normals).all(|p| p.iter().all(|v| v.is_finite())) {
+    if !mesh
+        .positions
+        .iter()
+        .chain(&mesh.normals)
+        .all(|p| p.iter().all(|v| v.is_finite()))
+    {
         return bad("non-finite position or normal".into());
     }
     Ok(())
@@ -173,12 +215,31 @@ pub struct Renderer {
 impl Renderer {
     /// A renderer for 4× multisampled targets of `target_format` (use
     /// `Rgba8Unorm` for textures shown by egui; the shaders then encode sRGB themselves).
-    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, target_format: wgpu::TextureFormat) -> Self {
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        target_format: wgpu::TextureFormat,
+    ) -> Self {
         Self::with_samples(device, queue, target_format, 4)
     }
 
+    /// Samples per pixel suited to an adapter: 4× MSAA on GPUs, 1 on software rasterisers
+    /// (lavapipe/llvmpipe), where multisampling roughly doubles the frame time.
+    pub fn preferred_sample_count(info: &wgpu::AdapterInfo) -> u32 {
+        if info.device_type == wgpu::DeviceType::Cpu {
+            1
+        } else {
+            4
+        }
+    }
+
     /// A renderer for targets with `sample_count` samples per pixel (1, or 4 for MSAA).
-    pub fn with_samples(device: &wgpu::Device, queue: &wgpu::Queue, target_format: wgpu::TextureFormat, sample_count: u32) -> Self {
+    pub fn with_samples(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        target_format: wgpu::TextureFormat,
+        sample_count: u32,
+    ) -> Self {
         let sample_count = if sample_count > 1 { 4 } else { 1 };
         let pipelines = Pipelines::new(device, target_format, sample_count);
         let globals = device.create_buffer(&wgpu::BufferDescriptor {
@@ -190,7 +251,10 @@ impl Renderer {
         let globals_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("neural-cloth globals group"),
             layout: &pipelines.globals_layout,
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: globals.as_entire_binding() }],
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: globals.as_entire_binding(),
+            }],
         });
         Self {
             device: device.clone(),
@@ -227,10 +291,28 @@ impl Renderer {
     /// rewrites positions, normals and colours. An invalid mesh is dropped (not drawn) and
     /// reported; the rest of the frame is still uploaded.
     pub fn upload(&mut self, frame: &SceneFrame) -> Result<(), RenderError> {
-        let body = Self::upload_mesh(&self.device, &self.queue, &self.pipelines, &mut self.body, "body", frame.body.as_ref());
-        let garment = Self::upload_mesh(&self.device, &self.queue, &self.pipelines, &mut self.garment, "garment", frame.garment.as_ref());
+        let body = Self::upload_mesh(
+            &self.device,
+            &self.queue,
+            &self.pipelines,
+            &mut self.body,
+            "body",
+            frame.body.as_ref(),
+        );
+        let garment = Self::upload_mesh(
+            &self.device,
+            &self.queue,
+            &self.pipelines,
+            &mut self.garment,
+            "garment",
+            frame.garment.as_ref(),
+        );
         self.upload_points(&frame.collision_points);
-        self.ground_y = if frame.ground_y.is_finite() { frame.ground_y } else { 0.0 };
+        self.ground_y = if frame.ground_y.is_finite() {
+            frame.ground_y
+        } else {
+            0.0
+        };
         body.and(garment)
     }
 
@@ -262,7 +344,10 @@ impl Renderer {
         let instances: Vec<PointInstance> = points
             .iter()
             .filter(|p| p.iter().all(|v| v.is_finite()))
-            .map(|p| PointInstance { pos_in_world: [p.x, p.y, p.z], color })
+            .map(|p| PointInstance {
+                pos_in_world: [p.x, p.y, p.z],
+                color,
+            })
             .collect();
         self.point_count = instances.len() as u32;
         if instances.is_empty() {
@@ -281,7 +366,8 @@ impl Renderer {
             self.points = Some((buffer, capacity));
         }
         if let Some((buffer, _)) = &self.points {
-            self.queue.write_buffer(buffer, 0, bytemuck::cast_slice(&instances));
+            self.queue
+                .write_buffer(buffer, 0, bytemuck::cast_slice(&instances));
         }
     }
 
@@ -289,7 +375,8 @@ impl Renderer {
     fn write_globals(&self, target: &RenderTarget, camera: &OrbitCamera, options: &DrawOptions) {
         let (right, up) = camera.right_up();
         let back = right.cross(&up);
-        let light = crate::geometry::safe_normalize(-right * 0.45 + up * 0.8 + back * 0.55).unwrap_or_else(crate::geometry::Vec3::y);
+        let light = crate::geometry::safe_normalize(-right * 0.45 + up * 0.8 + back * 0.55)
+            .unwrap_or_else(crate::geometry::Vec3::y);
         let eye = camera.eye();
         let m = camera.clip_from_world(target.aspect());
         let mut clip_from_world = [[0.0f32; 4]; 4];
@@ -306,14 +393,31 @@ impl Renderer {
             light_dir: [light.x, light.y, light.z, 0.0],
             background: linear_rgba(BACKGROUND_SRGB[0], BACKGROUND_SRGB[1], BACKGROUND_SRGB[2]),
             wire_color: [wire[0], wire[1], wire[2], 0.6],
-            viewport: [w as f32, h as f32, if self.format.is_srgb() { 0.0 } else { 1.0 }, 8.0],
-            grid: [self.ground_y, 0.25, 12.0, if options.grid { 1.0 } else { 0.0 }],
+            viewport: [
+                w as f32,
+                h as f32,
+                if self.format.is_srgb() { 0.0 } else { 1.0 },
+                8.0,
+            ],
+            grid: [
+                self.ground_y,
+                0.25,
+                12.0,
+                if options.grid { 1.0 } else { 0.0 },
+            ],
         };
-        self.queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
+        self.queue
+            .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
     }
 
     /// Records one render pass drawing the uploaded frame into `target`.
-    pub fn render(&self, encoder: &mut wgpu::CommandEncoder, target: &RenderTarget, camera: &OrbitCamera, options: &DrawOptions) -> Result<(), RenderError> {
+    pub fn render(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &RenderTarget,
+        camera: &OrbitCamera,
+        options: &DrawOptions,
+    ) -> Result<(), RenderError> {
         if target.format() != self.format || target.sample_count() != self.sample_count {
             return Err(RenderError::TargetMismatch {
                 expected: format!("{:?} x{}", self.format, self.sample_count),
@@ -321,25 +425,46 @@ impl Renderer {
             });
         }
         self.write_globals(target, camera, options);
-        let mesh_params = |base: [u8; 3], back: [u8; 3], two_sided: bool, colors: bool, specular: u32| MeshParams {
-            base_color: linear_rgba(base[0], base[1], base[2]),
-            back_color: linear_rgba(back[0], back[1], back[2]),
-            flags: [u32::from(two_sided), u32::from(colors), specular, 0],
-        };
+        let mesh_params =
+            |base: [u8; 3], back: [u8; 3], two_sided: bool, colors: bool, specular: u32| {
+                MeshParams {
+                    base_color: linear_rgba(base[0], base[1], base[2]),
+                    back_color: linear_rgba(back[0], back[1], back[2]),
+                    flags: [u32::from(two_sided), u32::from(colors), specular, 0],
+                }
+            };
         if let Some(body) = &self.body {
             let p = mesh_params(BODY_SRGB, BODY_SRGB, false, false, 180);
-            self.queue.write_buffer(&body.params, 0, bytemuck::bytes_of(&p));
+            self.queue
+                .write_buffer(&body.params, 0, bytemuck::bytes_of(&p));
         }
         if let Some(garment) = &self.garment {
-            let p = mesh_params(GARMENT_SRGB, GARMENT_BACK_SRGB, true, options.heat_map && garment.has_colors, 60);
-            self.queue.write_buffer(&garment.params, 0, bytemuck::bytes_of(&p));
+            let p = mesh_params(
+                GARMENT_SRGB,
+                GARMENT_BACK_SRGB,
+                true,
+                options.heat_map && garment.has_colors,
+                60,
+            );
+            self.queue
+                .write_buffer(&garment.params, 0, bytemuck::bytes_of(&p));
         }
         let bg = BACKGROUND_SRGB.map(|c| f64::from(c) / 255.0);
         let clear = if self.format.is_srgb() {
             let l = |c: f64| f64::from(super::gpu::linear_from_srgb(c as f32));
-            wgpu::Color { r: l(bg[0]), g: l(bg[1]), b: l(bg[2]), a: 1.0 }
+            wgpu::Color {
+                r: l(bg[0]),
+                g: l(bg[1]),
+                b: l(bg[2]),
+                a: 1.0,
+            }
         } else {
-            wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }
+            wgpu::Color {
+                r: bg[0],
+                g: bg[1],
+                b: bg[2],
+                a: 1.0,
+            }
         };
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("neural-cloth viewport pass"),
@@ -350,10 +475,15 @@ impl Renderer {
             multiview_mask: None,
         });
         pass.set_bind_group(0, &self.globals_group, &[]);
-        let shown = [(&self.body, options.show_body), (&self.garment, options.show_garment)];
+        let shown = [
+            (&self.body, options.show_body),
+            (&self.garment, options.show_garment),
+        ];
         pass.set_pipeline(&self.pipelines.mesh);
         for (mesh, visible) in shown {
-            let (Some(mesh), true) = (mesh, visible) else { continue };
+            let (Some(mesh), true) = (mesh, visible) else {
+                continue;
+            };
             pass.set_bind_group(1, &mesh.params_group, &[]);
             pass.set_vertex_buffer(0, mesh.positions.slice(..));
             pass.set_vertex_buffer(1, mesh.normals.slice(..));
@@ -365,15 +495,19 @@ impl Renderer {
             pass.set_pipeline(&self.pipelines.grid);
             pass.draw(0..6, 0..1);
         }
-        if let (true, true, Some(garment)) = (options.wireframe, options.show_garment, &self.garment) {
-            if let Some((edges, count)) = &garment.edge_indices {
-                pass.set_pipeline(&self.pipelines.lines);
-                pass.set_vertex_buffer(0, garment.positions.slice(..));
-                pass.set_index_buffer(edges.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..*count, 0, 0..1);
-            }
+        if let (true, true, Some(garment)) =
+            (options.wireframe, options.show_garment, &self.garment)
+            && let Some((edges, count)) = &garment.edge_indices
+        {
+            pass.set_pipeline(&self.pipelines.lines);
+            pass.set_vertex_buffer(0, garment.positions.slice(..));
+            pass.set_index_buffer(edges.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..*count, 0, 0..1);
         }
-        if let (true, Some((points, _))) = (options.collision_points && self.point_count > 0, &self.points) {
+        if let (true, Some((points, _))) = (
+            options.collision_points && self.point_count > 0,
+            &self.points,
+        ) {
             pass.set_pipeline(&self.pipelines.points);
             pass.set_vertex_buffer(0, points.slice(..));
             pass.draw(0..6, 0..self.point_count);
@@ -383,6 +517,9 @@ impl Renderer {
 
     /// Vertex counts of the uploaded body and garment (0 when absent), for tests and overlays.
     pub fn uploaded_vertex_counts(&self) -> (usize, usize) {
-        (self.body.as_ref().map_or(0, |m| m.vertex_count), self.garment.as_ref().map_or(0, |m| m.vertex_count))
+        (
+            self.body.as_ref().map_or(0, |m| m.vertex_count),
+            self.garment.as_ref().map_or(0, |m| m.vertex_count),
+        )
     }
 }

@@ -12,6 +12,10 @@ use serde::{Deserialize, Serialize};
 use super::procedural::{GarmentKind, MotionKind};
 use super::{Avatar, Garment, Motion, Scene, SceneError};
 
+mod sources;
+
+pub use sources::{AvatarSource, BuiltinAvatar, GarmentSource, LengthUnit, MotionSource};
+
 /// Errors of scene configuration files.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
@@ -68,277 +72,6 @@ pub enum Split {
     Test,
 }
 
-/// Length unit of a file whose own units are not trusted.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub enum LengthUnit {
-    /// Metres.
-    #[serde(rename = "m")]
-    Metres,
-    /// Centimetres.
-    #[serde(rename = "cm")]
-    Centimetres,
-    /// Millimetres.
-    #[serde(rename = "mm")]
-    Millimetres,
-    /// Inches.
-    #[serde(rename = "in")]
-    Inches,
-}
-
-impl LengthUnit {
-    /// Metres per unit.
-    pub fn metres_per_unit(self) -> f32 {
-        match self {
-            LengthUnit::Metres => 1.0,
-            LengthUnit::Centimetres => 0.01,
-            LengthUnit::Millimetres => 0.001,
-            LengthUnit::Inches => 0.0254,
-        }
-    }
-}
-
-/// Built-in avatars.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum BuiltinAvatar {
-    /// The procedural mannequin (`procedural::mannequin`).
-    Mannequin,
-}
-
-/// Where the avatar comes from.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "RawSource", into = "RawSource")]
-pub enum AvatarSource {
-    /// A built-in avatar: `builtin = "mannequin"`.
-    Builtin {
-        /// Which one.
-        builtin: BuiltinAvatar,
-    },
-    /// A skinned glTF/GLB file: `path = "avatars/body.glb"`, optional `units`.
-    File {
-        /// Path, relative to the config file's folder.
-        path: PathBuf,
-        /// Unit of the file's lengths; default: the file's own (glTF: metres).
-        units: Option<LengthUnit>,
-    },
-}
-
-/// Where the garment comes from.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "RawSource", into = "RawSource")]
-pub enum GarmentSource {
-    /// A built-in garment: `builtin = "tshirt" | "skirt" | "dress"`, optional `resolution`
-    /// and `smoothing_passes` (needs the mannequin).
-    Builtin {
-        /// Which one.
-        builtin: GarmentKind,
-        /// Target vertex count (degrees of freedom / 3); 200..=500000, default 3400 (about
-        /// 10K DoF); the result is within a few percent.
-        resolution: usize,
-        /// Skin-weight smoothing passes, 0..=200; default: the kind's recommendation
-        /// (5 for the t-shirt, 30 for skirt and dress).
-        smoothing_passes: Option<usize>,
-    },
-    /// A garment file (OBJ or glTF) in the avatar's rest pose: `path`, optional `units` and
-    /// `smoothing_passes`.
-    File {
-        /// Path, relative to the config file's folder.
-        path: PathBuf,
-        /// Unit of the file's lengths; default: metres for glTF, guessed for OBJ.
-        units: Option<LengthUnit>,
-        /// Skin-weight smoothing passes, 0..=200; default 3 (use 20-50 for skirts).
-        smoothing_passes: Option<usize>,
-    },
-}
-
-/// Where a motion comes from.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "RawSource", into = "RawSource")]
-pub enum MotionSource {
-    /// A procedural motion: `builtin = "idle" | "walk" | "run" | "jump" | "turn" | "spin"`,
-    /// optional `duration_secs`, `fps`, `split`, `name` (needs the mannequin).
-    Builtin {
-        /// Which one.
-        builtin: MotionKind,
-        /// Length in seconds, (0, 3600], default 6.
-        duration_secs: f32,
-        /// Sampling rate in frames per second, [1, 1000]; default: the scene's `training_fps`.
-        fps: Option<f32>,
-        /// Data split, default "train".
-        split: Split,
-        /// Display name; default: the kind's name.
-        name: Option<String>,
-    },
-    /// A motion file (BVH, or the animations of a glTF/GLB file): `path`, optional `units`,
-    /// `split`, `name`.
-    File {
-        /// Path, relative to the config file's folder.
-        path: PathBuf,
-        /// Unit of the file's lengths; default: the file's own (BVH: guessed from the height).
-        units: Option<LengthUnit>,
-        /// Data split, default "train".
-        split: Split,
-        /// Animation to take from a file holding several; default: all of them (each keeps
-        /// its own name; a BVH motion is named after the file stem).
-        name: Option<String>,
-    },
-}
-
-/// The TOML shape shared by all sources; converted with field checks and clear messages.
-#[derive(Clone, Debug, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawSource {
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    builtin: Option<String>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    path: Option<PathBuf>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    units: Option<LengthUnit>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    resolution: Option<usize>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    smoothing_passes: Option<usize>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    duration_secs: Option<f32>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    fps: Option<f32>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    split: Option<Split>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    name: Option<String>,
-}
-
-impl RawSource {
-    /// Checks that exactly one of `builtin`/`path` is set and no field outside `allowed`.
-    fn check(&self, what: &str, expected: &str, allowed: &[&str]) -> Result<(), String> {
-        match (&self.builtin, &self.path) {
-            (Some(_), Some(_)) => return Err(format!("{what}: set either `builtin` or `path`, not both")),
-            (None, None) => return Err(format!("{what}: set `builtin` (one of {expected}) or `path`")),
-            _ => {}
-        }
-        let set = [
-            ("units", self.units.is_some()),
-            ("resolution", self.resolution.is_some()),
-            ("smoothing_passes", self.smoothing_passes.is_some()),
-            ("duration_secs", self.duration_secs.is_some()),
-            ("fps", self.fps.is_some()),
-            ("split", self.split.is_some()),
-            ("name", self.name.is_some()),
-        ];
-        let kind = if self.builtin.is_some() { "built-in" } else { "file" };
-        match set.iter().find(|(field, on)| *on && !allowed.contains(field)) {
-            Some((field, _)) => Err(format!("{what}: `{field}` does not apply to a {kind} {what}")),
-            None => Ok(()),
-        }
-    }
-}
-
-fn unknown(what: &str, name: &str, expected: &str) -> String {
-    format!("unknown built-in {what} \"{name}\" (expected one of {expected})")
-}
-
-impl TryFrom<RawSource> for AvatarSource {
-    type Error = String;
-    fn try_from(raw: RawSource) -> Result<Self, String> {
-        let expected = "\"mannequin\"";
-        match (raw.builtin.clone(), raw.path.clone()) {
-            (Some(b), None) => {
-                raw.check("avatar", expected, &[])?;
-                match b.as_str() {
-                    "mannequin" => Ok(Self::Builtin { builtin: BuiltinAvatar::Mannequin }),
-                    other => Err(unknown("avatar", other, expected)),
-                }
-            }
-            (_, path) => {
-                raw.check("avatar", expected, &["units"])?;
-                Ok(Self::File { path: path.unwrap_or_default(), units: raw.units })
-            }
-        }
-    }
-}
-
-impl From<AvatarSource> for RawSource {
-    fn from(s: AvatarSource) -> Self {
-        match s {
-            AvatarSource::Builtin { .. } => Self { builtin: Some("mannequin".into()), ..Self::default() },
-            AvatarSource::File { path, units } => Self { path: Some(path), units, ..Self::default() },
-        }
-    }
-}
-
-impl TryFrom<RawSource> for GarmentSource {
-    type Error = String;
-    fn try_from(raw: RawSource) -> Result<Self, String> {
-        let expected = "\"tshirt\", \"skirt\", \"dress\"";
-        match (raw.builtin.clone(), raw.path.clone()) {
-            (Some(b), None) => {
-                raw.check("garment", expected, &["resolution", "smoothing_passes"])?;
-                let builtin = GarmentKind::from_name(&b).ok_or_else(|| unknown("garment", &b, expected))?;
-                let resolution = raw.resolution.unwrap_or_else(default_resolution);
-                Ok(Self::Builtin { builtin, resolution, smoothing_passes: raw.smoothing_passes })
-            }
-            (_, path) => {
-                raw.check("garment", expected, &["units", "smoothing_passes"])?;
-                Ok(Self::File { path: path.unwrap_or_default(), units: raw.units, smoothing_passes: raw.smoothing_passes })
-            }
-        }
-    }
-}
-
-impl From<GarmentSource> for RawSource {
-    fn from(s: GarmentSource) -> Self {
-        match s {
-            GarmentSource::Builtin { builtin, resolution, smoothing_passes } => Self {
-                builtin: Some(builtin.name().into()),
-                resolution: Some(resolution),
-                smoothing_passes,
-                ..Self::default()
-            },
-            GarmentSource::File { path, units, smoothing_passes } => {
-                Self { path: Some(path), units, smoothing_passes, ..Self::default() }
-            }
-        }
-    }
-}
-
-impl TryFrom<RawSource> for MotionSource {
-    type Error = String;
-    fn try_from(raw: RawSource) -> Result<Self, String> {
-        let expected = "\"idle\", \"walk\", \"run\", \"jump\", \"turn\", \"spin\"";
-        let split = raw.split.unwrap_or_default();
-        match (raw.builtin.clone(), raw.path.clone()) {
-            (Some(b), None) => {
-                raw.check("motion", expected, &["duration_secs", "fps", "split", "name"])?;
-                let builtin = MotionKind::from_name(&b).ok_or_else(|| unknown("motion", &b, expected))?;
-                let duration_secs = raw.duration_secs.unwrap_or_else(default_duration);
-                Ok(Self::Builtin { builtin, duration_secs, fps: raw.fps, split, name: raw.name })
-            }
-            (_, path) => {
-                raw.check("motion", expected, &["units", "split", "name"])?;
-                Ok(Self::File { path: path.unwrap_or_default(), units: raw.units, split, name: raw.name })
-            }
-        }
-    }
-}
-
-impl From<MotionSource> for RawSource {
-    fn from(s: MotionSource) -> Self {
-        match s {
-            MotionSource::Builtin { builtin, duration_secs, fps, split, name } => Self {
-                builtin: Some(builtin.name().into()),
-                duration_secs: Some(duration_secs),
-                fps,
-                split: Some(split),
-                name,
-                ..Self::default()
-            },
-            MotionSource::File { path, units, split, name } => {
-                Self { path: Some(path), units, split: Some(split), name, ..Self::default() }
-            }
-        }
-    }
-}
-
 /// Physical effects a scene needs; only declared effects are built and evaluated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -358,7 +91,13 @@ pub struct Effects {
 
 impl Default for Effects {
     fn default() -> Self {
-        Self { gravity: true, bending: true, collision: true, dynamics: true, pinning: false }
+        Self {
+            gravity: true,
+            bending: true,
+            collision: true,
+            dynamics: true,
+            pinning: false,
+        }
     }
 }
 
@@ -387,10 +126,10 @@ pub struct SceneConfig {
     pub training_fps: f32,
 }
 
-fn default_resolution() -> usize {
+pub(crate) fn default_resolution() -> usize {
     super::procedural::garments::DEFAULT_VERTICES
 }
-fn default_duration() -> f32 {
+pub(crate) fn default_duration() -> f32 {
     6.0
 }
 fn default_training_fps() -> f32 {
@@ -404,26 +143,39 @@ pub fn default_fabric() -> toml::Table {
 }
 
 fn invalid(field: impl Into<String>, reason: impl Into<String>) -> ConfigError {
-    ConfigError::Invalid { field: field.into(), reason: reason.into() }
+    ConfigError::Invalid {
+        field: field.into(),
+        reason: reason.into(),
+    }
 }
 
 fn check_rate(field: String, fps: f32) -> Result<(), ConfigError> {
     if fps.is_finite() && (1.0..=1000.0).contains(&fps) {
         Ok(())
     } else {
-        Err(invalid(field, format!("{fps} frames per second is outside [1, 1000]")))
+        Err(invalid(
+            field,
+            format!("{fps} frames per second is outside [1, 1000]"),
+        ))
     }
 }
 
 fn check_passes(field: String, passes: Option<usize>) -> Result<(), ConfigError> {
     match passes {
-        Some(p) if p > 200 => Err(invalid(field, format!("{p} smoothing passes is more than 200"))),
+        Some(p) if p > 200 => Err(invalid(
+            field,
+            format!("{p} smoothing passes is more than 200"),
+        )),
         _ => Ok(()),
     }
 }
 
 fn check_path(field: String, path: &Path) -> Result<(), ConfigError> {
-    if path.as_os_str().is_empty() { Err(invalid(field, "empty path")) } else { Ok(()) }
+    if path.as_os_str().is_empty() {
+        Err(invalid(field, "empty path"))
+    } else {
+        Ok(())
+    }
 }
 
 impl SceneConfig {
@@ -446,8 +198,14 @@ impl SceneConfig {
             .collect();
         Self {
             name: "default".into(),
-            avatar: AvatarSource::Builtin { builtin: BuiltinAvatar::Mannequin },
-            garment: GarmentSource::Builtin { builtin: GarmentKind::TShirt, resolution: default_resolution(), smoothing_passes: None },
+            avatar: AvatarSource::Builtin {
+                builtin: BuiltinAvatar::Mannequin,
+            },
+            garment: GarmentSource::Builtin {
+                builtin: GarmentKind::TShirt,
+                resolution: default_resolution(),
+                smoothing_passes: None,
+            },
             motions,
             effects: Effects::default(),
             fabric: default_fabric(),
@@ -465,14 +223,24 @@ impl SceneConfig {
     /// Reads, parses and validates a scene file. Relative paths inside stay as written;
     /// resolve them with [`SceneConfig::resolve_path`] and the file's folder.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let in_file = |source: ConfigError| ConfigError::InFile { source: Box::new(source), path: path.to_path_buf() };
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io { source, path: path.to_path_buf() })?;
+        let in_file = |source: ConfigError| ConfigError::InFile {
+            source: Box::new(source),
+            path: path.to_path_buf(),
+        };
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            source,
+            path: path.to_path_buf(),
+        })?;
         Self::from_toml_str(&text).map_err(in_file)
     }
 
     /// `path` as seen from a config file in folder `config_dir` (absolute paths unchanged).
     pub fn resolve_path(config_dir: &Path, path: &Path) -> PathBuf {
-        if path.is_absolute() { path.to_path_buf() } else { config_dir.join(path) }
+        if path.is_absolute() {
+            path.to_path_buf()
+        } else {
+            config_dir.join(path)
+        }
     }
 
     /// Serialises to TOML (validated first, so what is written can be read back).
@@ -492,7 +260,11 @@ impl SceneConfig {
             check_path("avatar.path".into(), path)?;
         }
         match &self.garment {
-            GarmentSource::Builtin { builtin, resolution, smoothing_passes } => {
+            GarmentSource::Builtin {
+                builtin,
+                resolution,
+                smoothing_passes,
+            } => {
                 use super::procedural::garments::{MAX_VERTICES, MIN_VERTICES};
                 if !(MIN_VERTICES..=MAX_VERTICES).contains(resolution) {
                     return Err(invalid(
@@ -501,11 +273,21 @@ impl SceneConfig {
                     ));
                 }
                 if !builtin_avatar {
-                    return Err(invalid("garment.builtin", format!("built-in garment '{}' needs the built-in mannequin", builtin.name())));
+                    return Err(invalid(
+                        "garment.builtin",
+                        format!(
+                            "built-in garment '{}' needs the built-in mannequin",
+                            builtin.name()
+                        ),
+                    ));
                 }
                 check_passes("garment.smoothing_passes".into(), *smoothing_passes)?;
             }
-            GarmentSource::File { path, smoothing_passes, .. } => {
+            GarmentSource::File {
+                path,
+                smoothing_passes,
+                ..
+            } => {
                 check_path("garment.path".into(), path)?;
                 check_passes("garment.smoothing_passes".into(), *smoothing_passes)?;
             }
@@ -515,18 +297,39 @@ impl SceneConfig {
         }
         for (k, m) in self.motions.iter().enumerate() {
             match m {
-                MotionSource::Builtin { builtin, duration_secs, fps, name, .. } => {
-                    if !(duration_secs.is_finite() && *duration_secs > 0.0 && *duration_secs <= 3600.0) {
-                        return Err(invalid(format!("motions[{k}].duration_secs"), format!("{duration_secs} s is outside (0, 3600]")));
+                MotionSource::Builtin {
+                    builtin,
+                    duration_secs,
+                    fps,
+                    name,
+                    ..
+                } => {
+                    if !(duration_secs.is_finite()
+                        && *duration_secs > 0.0
+                        && *duration_secs <= 3600.0)
+                    {
+                        return Err(invalid(
+                            format!("motions[{k}].duration_secs"),
+                            format!("{duration_secs} s is outside (0, 3600]"),
+                        ));
                     }
                     if let Some(fps) = fps {
                         check_rate(format!("motions[{k}].fps"), *fps)?;
                     }
                     if !builtin_avatar {
-                        return Err(invalid(format!("motions[{k}].builtin"), format!("built-in motion '{}' needs the built-in mannequin", builtin.name())));
+                        return Err(invalid(
+                            format!("motions[{k}].builtin"),
+                            format!(
+                                "built-in motion '{}' needs the built-in mannequin",
+                                builtin.name()
+                            ),
+                        ));
                     }
                     if name.as_deref().is_some_and(|n| n.trim().is_empty()) {
-                        return Err(invalid(format!("motions[{k}].name"), "must not be empty when given"));
+                        return Err(invalid(
+                            format!("motions[{k}].name"),
+                            "must not be empty when given",
+                        ));
                     }
                 }
                 MotionSource::File { path, .. } => check_path(format!("motions[{k}].path"), path)?,
@@ -540,17 +343,21 @@ impl SceneConfig {
 
     /// Assembles a scene from sources the caller has already loaded (one motion list entry
     /// per loaded motion, with its split), taking name, effects, fabric and rate from here.
-    pub fn assemble(&self, avatar: Avatar, garment: Garment, motions: Vec<(Motion, Split)>) -> Result<Scene, SceneError> {
-        Scene::new(self.name.clone(), avatar, garment, motions, self.effects, self.fabric.clone(), self.training_fps)
-    }
-}
-
-impl MotionSource {
-    /// The motion's data split.
-    pub fn split(&self) -> Split {
-        match self {
-            MotionSource::Builtin { split, .. } | MotionSource::File { split, .. } => *split,
-        }
+    pub fn assemble(
+        &self,
+        avatar: Avatar,
+        garment: Garment,
+        motions: Vec<(Motion, Split)>,
+    ) -> Result<Scene, SceneError> {
+        Scene::new(
+            self.name.clone(),
+            avatar,
+            garment,
+            motions,
+            self.effects,
+            self.fabric.clone(),
+            self.training_fps,
+        )
     }
 }
 
@@ -558,7 +365,10 @@ impl MotionSource {
 mod tests {
     use super::*;
 
-    const DEFAULT_TOML: &str = include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/default-scene.toml"));
+    const DEFAULT_TOML: &str = include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/default-scene.toml"
+    ));
 
     #[test]
     fn default_asset_matches_code_default() {
@@ -577,8 +387,18 @@ mod tests {
         assert_eq!(c.training_fps, 30.0);
         assert_eq!(c.effects, Effects::default());
         assert!(!c.effects.pinning);
-        assert_eq!(c.fabric.get("preset").and_then(|v| v.as_str()), Some("default"));
-        assert_eq!(c.garment, GarmentSource::Builtin { builtin: GarmentKind::Skirt, resolution: 3400, smoothing_passes: None });
+        assert_eq!(
+            c.fabric.get("preset").and_then(|v| v.as_str()),
+            Some("default")
+        );
+        assert_eq!(
+            c.garment,
+            GarmentSource::Builtin {
+                builtin: GarmentKind::Skirt,
+                resolution: 3400,
+                smoothing_passes: None
+            }
+        );
         assert_eq!(c.motions[0].split(), Split::Train);
     }
 
@@ -598,10 +418,20 @@ name = "Run"
 "#,
         )
         .unwrap();
-        assert!(matches!(&c.garment, GarmentSource::File { units: Some(LengthUnit::Centimetres), smoothing_passes: Some(40), .. }));
+        assert!(matches!(
+            &c.garment,
+            GarmentSource::File {
+                units: Some(LengthUnit::Centimetres),
+                smoothing_passes: Some(40),
+                ..
+            }
+        ));
         assert_eq!(c.motions[0].split(), Split::Validation);
         let dir = Path::new("/scenes");
-        assert_eq!(SceneConfig::resolve_path(dir, Path::new("a/b.obj")), PathBuf::from("/scenes/a/b.obj"));
+        assert_eq!(
+            SceneConfig::resolve_path(dir, Path::new("a/b.obj")),
+            PathBuf::from("/scenes/a/b.obj")
+        );
     }
 
     #[test]
@@ -609,24 +439,63 @@ name = "Run"
         let base = SceneConfig::default_scene();
         let mut c = base.clone();
         c.training_fps = 0.0;
-        assert!(c.validate().unwrap_err().to_string().contains("training_fps"));
+        assert!(
+            c.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("training_fps")
+        );
         let mut c = base.clone();
-        c.garment = GarmentSource::Builtin { builtin: GarmentKind::Dress, resolution: 10, smoothing_passes: None };
-        assert!(c.validate().unwrap_err().to_string().contains("garment.resolution"));
+        c.garment = GarmentSource::Builtin {
+            builtin: GarmentKind::Dress,
+            resolution: 10,
+            smoothing_passes: None,
+        };
+        assert!(
+            c.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("garment.resolution")
+        );
         let mut c = base.clone();
-        c.avatar = AvatarSource::File { path: "x.glb".into(), units: None };
-        assert!(c.validate().unwrap_err().to_string().contains("needs the built-in mannequin"));
+        c.avatar = AvatarSource::File {
+            path: "x.glb".into(),
+            units: None,
+        };
+        assert!(
+            c.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("needs the built-in mannequin")
+        );
         let mut c = base.clone();
         c.motions.retain(|m| m.split() != Split::Train);
         assert!(c.validate().unwrap_err().to_string().contains("train"));
-        let err = SceneConfig::from_toml_str("name = \"x\"\navatar = { builtin = \"robot\" }").unwrap_err();
+        let err = SceneConfig::from_toml_str("name = \"x\"\navatar = { builtin = \"robot\" }")
+            .unwrap_err();
         assert!(matches!(err, ConfigError::Parse(_)), "{err}");
-        assert!(err.to_string().contains("unknown built-in avatar \"robot\""), "{err}");
-        let err = SceneConfig::from_toml_str(&DEFAULT_TOML.replace("builtin = \"tshirt\"", "builtin = \"tshirt\"\npath = \"a.obj\"")).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("unknown built-in avatar \"robot\""),
+            "{err}"
+        );
+        let err = SceneConfig::from_toml_str(&DEFAULT_TOML.replace(
+            "builtin = \"tshirt\"",
+            "builtin = \"tshirt\"\npath = \"a.obj\"",
+        ))
+        .unwrap_err();
         assert!(err.to_string().contains("not both"), "{err}");
-        let err = SceneConfig::from_toml_str(&DEFAULT_TOML.replace("builtin = \"mannequin\"", "builtin = \"mannequin\"\nresolution = 5")).unwrap_err();
-        assert!(err.to_string().contains("`resolution` does not apply"), "{err}");
-        let err = SceneConfig::from_toml_str(&DEFAULT_TOML.replace("training_fps", "training_fsp")).unwrap_err();
+        let err = SceneConfig::from_toml_str(&DEFAULT_TOML.replace(
+            "builtin = \"mannequin\"",
+            "builtin = \"mannequin\"\nresolution = 5",
+        ))
+        .unwrap_err();
+        assert!(
+            err.to_string().contains("`resolution` does not apply"),
+            "{err}"
+        );
+        let err = SceneConfig::from_toml_str(&DEFAULT_TOML.replace("training_fps", "training_fsp"))
+            .unwrap_err();
         assert!(err.to_string().contains("training_fsp"), "{err}");
     }
 
@@ -634,7 +503,11 @@ name = "Run"
     fn load_names_the_file_last() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("scene.toml");
-        std::fs::write(&path, "name = \"\"\navatar = { builtin = \"mannequin\" }\ngarment = { builtin = \"tshirt\" }").unwrap();
+        std::fs::write(
+            &path,
+            "name = \"\"\navatar = { builtin = \"mannequin\" }\ngarment = { builtin = \"tshirt\" }",
+        )
+        .unwrap();
         let msg = SceneConfig::load(&path).unwrap_err().to_string();
         assert!(msg.ends_with(&path.display().to_string()), "{msg}");
         assert!(msg.contains("name"), "{msg}");

@@ -17,3 +17,16 @@ pub fn inertia_through_past(terms: &PhysicsTerms, x_t: &Tensor<3>, x_t1: &Tensor
     let scale = 0.5 / (f64::from(dt_secs) * f64::from(dt_secs));
     Some(per_sample(dx2 * terms.tensors().mass.clone()).mul_scalar(scale).mean())
 }
+
+/// Skins rest positions `[B, T, V, 3]` with per-vertex blended 3x4 matrices `[B, T, V, 12]`
+/// (row-major): `x_r = Σ_c M_{r c} p_c + M_{r 3}`. Element-wise only, so its backward pass is
+/// element-wise too.
+pub fn skin_blended(rest: Tensor<4>, blended: Tensor<4>) -> Tensor<4> {
+    let [b, t, v, _] = rest.dims();
+    let m: Tensor<5> = blended.reshape([b, t, v, 3, 4]);
+    let linear = m.clone().narrow(4, 0, 3);
+    let translation: Tensor<4> = m.narrow(4, 3, 1).reshape([b, t, v, 3]);
+    let p: Tensor<5> = rest.reshape([b, t, v, 1, 3]);
+    let rotated: Tensor<4> = (linear * p).sum_dim(4).reshape([b, t, v, 3]);
+    rotated + translation
+}

@@ -3,6 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::physics::{ClothMetrics, ClothModel};
+
 /// The paper's §4.2 metrics plus the total loss, at one moment of training.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MetricRecord {
@@ -63,5 +65,43 @@ impl MetricHistory {
     pub fn truncate_after(&mut self, step: u64) {
         self.train.retain(|r| r.step <= step);
         self.validation.retain(|r| r.step <= step);
+    }
+}
+
+impl MetricRecord {
+    /// The record of physics metrics `m` for a garment of cloth model `model` (the strain is
+    /// the model's own in-plane measure: edge strain, Baraff-Witkin stretch or Green strain),
+    /// with total loss `loss`. Step and time are left at zero for the caller.
+    pub fn from_metrics(model: ClothModel, m: &ClothMetrics, loss: f64) -> Self {
+        let strain = match model {
+            ClothModel::MassSpring => m.edge_strain.abs(),
+            ClothModel::BaraffWitkin => m.stretch,
+            ClothModel::Stvk => m.green_strain,
+        };
+        Self {
+            loss,
+            strain,
+            bending: m.bending_rad,
+            collision_pct: m.collision_pct.unwrap_or(0.0),
+            gravity: m.gravity_j,
+            inertia: m.inertia_j.unwrap_or(0.0),
+            ..Default::default()
+        }
+    }
+
+    /// Field-wise mean of `records` (zero when empty).
+    pub fn mean(records: &[MetricRecord]) -> Self {
+        let n = records.len().max(1) as f64;
+        let sum = |f: fn(&MetricRecord) -> f64| records.iter().map(f).sum::<f64>() / n;
+        Self {
+            step: records.last().map(|r| r.step).unwrap_or(0),
+            wall_secs: records.last().map(|r| r.wall_secs).unwrap_or(0.0),
+            loss: sum(|r| r.loss),
+            strain: sum(|r| r.strain),
+            bending: sum(|r| r.bending),
+            collision_pct: sum(|r| r.collision_pct),
+            gravity: sum(|r| r.gravity),
+            inertia: sum(|r| r.inertia),
+        }
     }
 }

@@ -10,6 +10,7 @@
 
 pub mod config;
 pub mod data;
+pub mod eval;
 pub mod handle;
 pub mod losses;
 pub mod metrics;
@@ -21,6 +22,7 @@ pub use config::{BackendKind, InertiaMode, TrainConfig};
 pub use handle::{RunSummary, TrainCommand, TrainEvent, TrainerHandle};
 pub use metrics::{MetricHistory, MetricRecord};
 pub use run_dir::{RunDir, RunMeta};
+pub use eval::{EvalReport, evaluate};
 pub use trained::{TrainedModel, load_trained};
 
 use std::path::{Path, PathBuf};

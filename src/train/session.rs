@@ -20,7 +20,7 @@ use rand::seq::SliceRandom;
 
 use crate::model::{ClothNet, GarmentLbs, InferenceWeights};
 use crate::physics::metrics::History;
-use crate::physics::{BodyBatch, ClothMetrics, ClothModel, FabricParams, PhysicsTerms};
+use crate::physics::{BodyBatch, ClothMetrics, FabricParams, PhysicsTerms};
 use crate::scene::{Avatar, Garment};
 
 use super::TrainError;
@@ -148,8 +148,9 @@ impl NeuralSession {
             };
             self.model.decode(z)
         };
-        let matrices = self.tensor4(batch.matrices.clone(), [b, 3, self.train.skeleton_joints, 12]);
-        self.lbs.pose(offsets, matrices)
+        let v = self.garment.vertex_count();
+        let blended = self.tensor4(batch.blended.clone(), [b, 3, v, 12]);
+        super::losses::skin_blended(self.lbs.rest(offsets), blended)
     }
 
     fn bodies(&self, data: &Dataset, batch: &Batch) -> Result<Option<BodyBatch>, TrainError> {
@@ -161,20 +162,7 @@ impl NeuralSession {
     }
 
     fn record(&self, metrics: &ClothMetrics, loss: f64) -> MetricRecord {
-        let strain = match self.terms.fabric().cloth_model {
-            ClothModel::MassSpring => metrics.edge_strain.abs(),
-            ClothModel::BaraffWitkin => metrics.stretch,
-            ClothModel::Stvk => metrics.green_strain,
-        };
-        MetricRecord {
-            loss,
-            strain,
-            bending: metrics.bending_rad,
-            collision_pct: metrics.collision_pct.unwrap_or(0.0),
-            gravity: metrics.gravity_j,
-            inertia: metrics.inertia_j.unwrap_or(0.0),
-            ..Default::default()
-        }
+        MetricRecord::from_metrics(self.terms.fabric().cloth_model, metrics, loss)
     }
 
     /// Frames of the configured window.
@@ -193,7 +181,7 @@ impl Session for NeuralSession {
     fn step(&mut self) -> Result<MetricRecord, String> {
         let b = self.config.batch_size;
         let windows = self.train.sample_windows(b, &mut self.rng);
-        let batch = self.train.batch(&windows, self.window_frames());
+        let batch = self.train.batch(&windows, self.window_frames(), &self.garment.skin);
         let augment = if self.terms.effects().dynamics && b >= 2 {
             ((self.config.augmentation_fraction * b as f32).round() as usize).min(b - 1)
         } else {
@@ -234,7 +222,7 @@ impl Session for NeuralSession {
         if windows.is_empty() {
             return Err("no validation frames".into());
         }
-        let batch = data.batch(&windows, self.window_frames());
+        let batch = data.batch(&windows, self.window_frames(), &self.garment.skin);
         let bodies = self.bodies(data, &batch).map_err(|e| e.to_string())?;
         let x = self.predict(&batch, 0).detach();
         let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));

@@ -16,8 +16,8 @@ pub struct OffsetBasis {
 }
 
 /// Computes up to `max_targets` components of `frames` (each the same length) through the
-/// eigen-decomposition of the frame Gram matrix (cheap: frames × frames). Components with
-/// negligible energy are dropped.
+/// eigen-decomposition of the frame Gram matrix (cheap: frames × frames). Components that move
+/// no vertex by more than 0.1 µm, or sit at f32 rounding-noise level, are dropped.
 pub fn offset_basis(frames: &[Vec<Vec3>], max_targets: usize) -> OffsetBasis {
     let n = frames.len();
     let v = frames.first().map(|f| f.len()).unwrap_or(0);
@@ -32,7 +32,11 @@ pub fn offset_basis(frames: &[Vec<Vec3>], max_targets: usize) -> OffsetBasis {
     let mut gram = nalgebra::DMatrix::<f64>::zeros(n, n);
     for i in 0..n {
         for j in i..n {
-            let d: f64 = centered[i].iter().zip(&centered[j]).map(|(a, b)| a.dot(b) as f64).sum();
+            let d: f64 = centered[i]
+                .iter()
+                .zip(&centered[j])
+                .map(|(a, b)| a.iter().zip(b.iter()).map(|(x, y)| f64::from(*x) * f64::from(*y)).sum::<f64>())
+                .sum();
             gram[(i, j)] = d;
             gram[(j, i)] = d;
         }
@@ -45,7 +49,9 @@ pub fn offset_basis(frames: &[Vec<Vec3>], max_targets: usize) -> OffsetBasis {
         let top = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
         for &k in order.iter().take(max_targets) {
             let lambda = eig.eigenvalues[k];
-            if !(lambda > top * 1e-12 && lambda > 1e-20) {
+            // A component moves no vertex farther than sqrt(lambda) over the whole sequence:
+            // drop those below a tenth of a micrometre or at f32 rounding-noise level.
+            if !(lambda > top * 1e-10 && lambda.sqrt() > 1e-7) {
                 break;
             }
             // Component = Σ_f u_f centered_f / sqrt(lambda): unit norm in vertex space.

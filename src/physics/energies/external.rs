@@ -13,7 +13,13 @@ pub fn gravity(x: &Tensor<3>, rt: &RestTensors) -> Tensor<1> {
 /// Inertia `Σ m |x_t - sg(2x_{t-1} - x_{t-2})|² / (2Δt²)` per sample, `[B]` joules.
 ///
 /// The projection is detached: no gradient ever reaches `x_{t-1}` or `x_{t-2}`.
-pub fn inertia(x_t: &Tensor<3>, x_t1: &Tensor<3>, x_t2: &Tensor<3>, rt: &RestTensors, dt_secs: f32) -> Tensor<1> {
+pub fn inertia(
+    x_t: &Tensor<3>,
+    x_t1: &Tensor<3>,
+    x_t2: &Tensor<3>,
+    rt: &RestTensors,
+    dt_secs: f32,
+) -> Tensor<1> {
     let projected = (x_t1.clone().mul_scalar(2.0) - x_t2.clone()).detach();
     let dx2 = norm2(x_t.clone() - projected);
     let scale = 0.5 / (f64::from(dt_secs) * f64::from(dt_secs));
@@ -22,7 +28,13 @@ pub fn inertia(x_t: &Tensor<3>, x_t1: &Tensor<3>, x_t2: &Tensor<3>, rt: &RestTen
 
 /// Mass-weighted mean distance `Σ m |x_t - x_proj| / Σ m` per sample, `[B]` metres (the
 /// inertia metric of the official code).
-pub fn inertia_distance(x_t: &Tensor<3>, x_t1: &Tensor<3>, x_t2: &Tensor<3>, rt: &RestTensors, total_mass: f64) -> Tensor<1> {
+pub fn inertia_distance(
+    x_t: &Tensor<3>,
+    x_t1: &Tensor<3>,
+    x_t2: &Tensor<3>,
+    rt: &RestTensors,
+    total_mass: f64,
+) -> Tensor<1> {
     let projected = (x_t1.clone().mul_scalar(2.0) - x_t2.clone()).detach();
     let d = norm2(x_t.clone() - projected).sqrt();
     per_sample(d * rt.mass.clone()).div_scalar(total_mass.max(f64::MIN_POSITIVE))

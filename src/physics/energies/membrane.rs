@@ -39,7 +39,10 @@ pub fn deformation(x: &Tensor<3>, rt: &RestTensors) -> Option<(Tensor<3>, Tensor
 }
 
 /// Per-face stretch `(|w_u| - 1, |w_v| - 1)` and shear `w_u·w_v`, each `[B, F, 1]`.
-pub fn stretch_and_shear(x: &Tensor<3>, rt: &RestTensors) -> Option<(Tensor<3>, Tensor<3>, Tensor<3>)> {
+pub fn stretch_and_shear(
+    x: &Tensor<3>,
+    rt: &RestTensors,
+) -> Option<(Tensor<3>, Tensor<3>, Tensor<3>)> {
     let (wu, wv) = deformation(x, rt)?;
     let su = norm2(wu.clone()).add_scalar(W_EPS2).sqrt().sub_scalar(1.0);
     let sv = norm2(wv.clone()).add_scalar(W_EPS2).sqrt().sub_scalar(1.0);
@@ -47,9 +50,15 @@ pub fn stretch_and_shear(x: &Tensor<3>, rt: &RestTensors) -> Option<(Tensor<3>, 
 }
 
 /// Squared Baraff-Witkin energies per sample: `(k_stretch Σ 2A (s_u² + s_v²), k_shear Σ 2A sh²)`.
-pub fn baraff_witkin(x: &Tensor<3>, rt: &RestTensors, k_stretch: f32, k_shear: f32) -> (Tensor<1>, Tensor<1>) {
+pub fn baraff_witkin(
+    x: &Tensor<3>,
+    rt: &RestTensors,
+    k_stretch: f32,
+    k_shear: f32,
+) -> (Tensor<1>, Tensor<1>) {
     let b = x.dims()[0];
-    let (Some((su, sv, sh)), Some(area2)) = (stretch_and_shear(x, rt), rt.face_area2.as_ref()) else {
+    let (Some((su, sv, sh)), Some(area2)) = (stretch_and_shear(x, rt), rt.face_area2.as_ref())
+    else {
         return (rt.zeros(b), rt.zeros(b));
     };
     let stretch = per_sample((su.square() + sv.square()) * area2.clone()).mul_scalar(k_stretch);

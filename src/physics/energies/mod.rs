@@ -8,4 +8,6 @@ pub mod membrane;
 
 pub use bending::{bending, dihedral_change};
 pub use external::{gravity, inertia, inertia_distance, pinning};
-pub use membrane::{baraff_witkin, deformation, edge_lengths, green_strain, mass_spring, stretch_and_shear, stvk};
+pub use membrane::{
+    baraff_witkin, deformation, edge_lengths, green_strain, mass_spring, stretch_and_shear, stvk,
+};

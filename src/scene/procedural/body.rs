@@ -200,14 +200,22 @@ impl Shape {
             Shape::Capsule { a, b, ra, rb } => {
                 let ab = b - a;
                 let len2 = ab.norm_squared();
-                let t = if len2 > 0.0 { ((p - a).dot(&ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+                let t = if len2 > 0.0 {
+                    ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
                 (p - (a + ab * t)).norm() - (ra + (rb - ra) * t)
             }
             Shape::Ellipsoid { centre, radii } => {
                 let q = p - centre;
                 let k0 = q.component_div(&radii).norm();
                 let k1 = q.component_div(&radii.component_mul(&radii)).norm();
-                if k1 > 1e-12 { k0 * (k0 - 1.0) / k1 } else { -radii.min() }
+                if k1 > 1e-12 {
+                    k0 * (k0 - 1.0) / k1
+                } else {
+                    -radii.min()
+                }
             }
         }
     }
@@ -251,22 +259,78 @@ impl BodySdf {
             centre: Vec3::new(c[0], c[1], c[2]),
             radii: Vec3::new(r[0], r[1], r[2]),
         };
-        let part = |shape, joint, blend_m| Part { shape, joint, blend_m };
+        let part = |shape, joint, blend_m| Part {
+            shape,
+            joint,
+            blend_m,
+        };
         let parts = vec![
             part(ell([0.0, 0.93, -0.005], [0.165, 0.11, 0.115]), HIPS, 0.0),
             part(ell([0.0, 1.08, 0.005], [0.14, 0.12, 0.10]), SPINE, 0.06),
             part(ell([0.0, 1.20, 0.005], [0.15, 0.12, 0.105]), SPINE1, 0.06),
             part(ell([0.0, 1.32, 0.0], [0.165, 0.12, 0.11]), SPINE2, 0.06),
-            part(cap(Vec3::new(0.0, 1.40, -0.01), Vec3::new(0.0, 1.56, 0.005), 0.056, 0.052), NECK, 0.03),
+            part(
+                cap(
+                    Vec3::new(0.0, 1.40, -0.01),
+                    Vec3::new(0.0, 1.56, 0.005),
+                    0.056,
+                    0.052,
+                ),
+                NECK,
+                0.03,
+            ),
             part(ell([0.0, 1.65, 0.015], [0.08, 0.105, 0.095]), HEAD, 0.03),
-            part(cap(Vec3::new(0.03, 1.415, -0.01), j[LEFT_ARM], 0.062, 0.054), LEFT_SHOULDER, 0.04),
-            part(cap(j[LEFT_ARM], j[LEFT_FORE_ARM], 0.05, 0.04), LEFT_ARM, 0.025),
-            part(cap(j[LEFT_FORE_ARM], j[LEFT_HAND], 0.039, 0.029), LEFT_FORE_ARM, 0.015),
-            part(cap(j[LEFT_HAND] + d * 0.03, j[LEFT_HAND] + d * 0.15, 0.03, 0.024), LEFT_HAND, 0.015),
-            part(cap(j[LEFT_UP_LEG], j[LEFT_LEG], 0.078, 0.054), LEFT_UP_LEG, 0.04),
+            part(
+                cap(Vec3::new(0.03, 1.415, -0.01), j[LEFT_ARM], 0.062, 0.054),
+                LEFT_SHOULDER,
+                0.04,
+            ),
+            part(
+                cap(j[LEFT_ARM], j[LEFT_FORE_ARM], 0.05, 0.04),
+                LEFT_ARM,
+                0.025,
+            ),
+            part(
+                cap(j[LEFT_FORE_ARM], j[LEFT_HAND], 0.039, 0.029),
+                LEFT_FORE_ARM,
+                0.015,
+            ),
+            part(
+                cap(
+                    j[LEFT_HAND] + d * 0.03,
+                    j[LEFT_HAND] + d * 0.15,
+                    0.03,
+                    0.024,
+                ),
+                LEFT_HAND,
+                0.015,
+            ),
+            part(
+                cap(j[LEFT_UP_LEG], j[LEFT_LEG], 0.078, 0.054),
+                LEFT_UP_LEG,
+                0.04,
+            ),
             part(cap(j[LEFT_LEG], j[LEFT_FOOT], 0.052, 0.036), LEFT_LEG, 0.02),
-            part(cap(Vec3::new(0.09, 0.04, -0.045), Vec3::new(0.09, 0.036, 0.1), 0.04, 0.036), LEFT_FOOT, 0.02),
-            part(cap(Vec3::new(0.09, 0.03, 0.1), Vec3::new(0.09, 0.028, 0.175), 0.03, 0.028), LEFT_TOE_BASE, 0.01),
+            part(
+                cap(
+                    Vec3::new(0.09, 0.04, -0.045),
+                    Vec3::new(0.09, 0.036, 0.1),
+                    0.04,
+                    0.036,
+                ),
+                LEFT_FOOT,
+                0.02,
+            ),
+            part(
+                cap(
+                    Vec3::new(0.09, 0.03, 0.1),
+                    Vec3::new(0.09, 0.028, 0.175),
+                    0.03,
+                    0.028,
+                ),
+                LEFT_TOE_BASE,
+                0.01,
+            ),
         ];
         Self { parts }
     }
@@ -274,17 +338,22 @@ impl BodySdf {
     /// Signed distance to the body surface at `p` (negative inside), metres.
     pub fn distance(&self, p: &Vec3) -> f32 {
         let q = Vec3::new(p.x.abs(), p.y, p.z);
-        self.parts
-            .iter()
-            .fold(f32::INFINITY, |acc, part| {
-                let d = part.shape.distance(&q);
-                if acc.is_finite() { smin(acc, d, part.blend_m) } else { d }
-            })
+        self.parts.iter().fold(f32::INFINITY, |acc, part| {
+            let d = part.shape.distance(&q);
+            if acc.is_finite() {
+                smin(acc, d, part.blend_m)
+            } else {
+                d
+            }
+        })
     }
 
     /// Per-part signed distances at `p` for a point on the left side or centre (`p.x >= 0`).
     pub fn part_distances(&self, p: &Vec3) -> Vec<f32> {
-        self.parts.iter().map(|part| part.shape.distance(p)).collect()
+        self.parts
+            .iter()
+            .map(|part| part.shape.distance(p))
+            .collect()
     }
 
     /// Axis-aligned bounds of the left half (`x >= 0`) of the body, padded by `pad_m`.
@@ -327,11 +396,19 @@ mod tests {
         let p = rest_joint_positions();
         for j in 0..JOINT_COUNT {
             let m = mirror_joint(j);
-            assert_eq!(p[m], Vec3::new(-p[j].x, p[j].y, p[j].z), "{}", JOINT_NAMES[j]);
+            assert_eq!(
+                p[m],
+                Vec3::new(-p[j].x, p[j].y, p[j].z),
+                "{}",
+                JOINT_NAMES[j]
+            );
             if let Some(parent) = JOINT_PARENTS[j] {
                 assert!(parent < j);
             }
-            let expected = JOINT_NAMES[j].replace("Left", "#").replace("Right", "Left").replace('#', "Right");
+            let expected = JOINT_NAMES[j]
+                .replace("Left", "#")
+                .replace("Right", "Left")
+                .replace('#', "Right");
             assert_eq!(JOINT_NAMES[m], expected);
         }
     }
@@ -342,7 +419,10 @@ mod tests {
         assert!(body.distance(&Vec3::new(0.0, 1.1, 0.0)) < -0.05);
         assert!(body.distance(&Vec3::new(0.0, 1.1, 0.5)) > 0.3);
         let p = Vec3::new(0.3, 1.3, 0.02);
-        assert_eq!(body.distance(&p), body.distance(&Vec3::new(-0.3, 1.3, 0.02)));
+        assert_eq!(
+            body.distance(&p),
+            body.distance(&Vec3::new(-0.3, 1.3, 0.02))
+        );
         // Feet reach the floor and the head reaches about 1.75 m.
         assert!(body.distance(&Vec3::new(0.09, 0.002, 0.05)) < 0.0);
         assert!(body.distance(&Vec3::new(0.0, 1.745, 0.015)) < 0.0);

@@ -62,7 +62,10 @@ impl GarmentKind {
             GarmentKind::TShirt => 5,
             GarmentKind::Skirt | GarmentKind::Dress => 30,
         };
-        GarmentOptions { smoothing_passes, ..GarmentOptions::default() }
+        GarmentOptions {
+            smoothing_passes,
+            ..GarmentOptions::default()
+        }
     }
 
     /// Rough surface area in m² (first guess for the grid spacing).
@@ -111,9 +114,14 @@ fn bell(p: &Vec3) -> f32 {
 /// Builds the template mesh of a built-in garment with about `vertices` vertices, in the
 /// mannequin's rest pose.
 pub fn garment_mesh(kind: GarmentKind, vertices: usize) -> Result<TriMesh, SceneError> {
-    let invalid = |reason: String| SceneError::InvalidGarment { name: kind.name().into(), reason };
+    let invalid = |reason: String| SceneError::InvalidGarment {
+        name: kind.name().into(),
+        reason,
+    };
     if !(MIN_VERTICES..=MAX_VERTICES).contains(&vertices) {
-        return Err(invalid(format!("resolution {vertices} is outside {MIN_VERTICES}..={MAX_VERTICES} vertices")));
+        return Err(invalid(format!(
+            "resolution {vertices} is outside {MIN_VERTICES}..={MAX_VERTICES} vertices"
+        )));
     }
     let body = BodySdf::mannequin();
     let offset_body = |p: &Vec3| body.distance(p) - OFFSET_M;
@@ -121,17 +129,36 @@ pub fn garment_mesh(kind: GarmentKind, vertices: usize) -> Result<TriMesh, Scene
     let left = |p: &Vec3| Vec3::new(p.x.abs(), p.y, p.z);
     let tshirt_region = |p: &Vec3| {
         let q = left(p);
-        (TSHIRT_HEM_Y - q.y).max(beyond_neck(&q)).max(beyond_sleeve(&q, 0.20))
+        (TSHIRT_HEM_Y - q.y)
+            .max(beyond_neck(&q))
+            .max(beyond_sleeve(&q, 0.20))
     };
     let skirt_region = |p: &Vec3| (HEM_Y - p.y).max(p.y - WAIST_Y);
     let dress_region = |p: &Vec3| {
         let q = left(p);
-        (HEM_Y - q.y).max(beyond_neck(&q)).max(beyond_sleeve(&q, 0.03))
+        (HEM_Y - q.y)
+            .max(beyond_neck(&q))
+            .max(beyond_sleeve(&q, 0.03))
     };
     let (field, region, lo, hi): (Field, Field, Vec3, Vec3) = match kind {
-        GarmentKind::TShirt => (&offset_body, &tshirt_region, Vec3::new(0.0, 0.90, -0.22), Vec3::new(0.45, 1.60, 0.22)),
-        GarmentKind::Skirt => (&with_bell, &skirt_region, Vec3::new(0.0, 0.50, -0.36), Vec3::new(0.42, 1.06, 0.36)),
-        GarmentKind::Dress => (&with_bell, &dress_region, Vec3::new(0.0, 0.50, -0.36), Vec3::new(0.45, 1.60, 0.36)),
+        GarmentKind::TShirt => (
+            &offset_body,
+            &tshirt_region,
+            Vec3::new(0.0, 0.90, -0.22),
+            Vec3::new(0.45, 1.60, 0.22),
+        ),
+        GarmentKind::Skirt => (
+            &with_bell,
+            &skirt_region,
+            Vec3::new(0.0, 0.50, -0.36),
+            Vec3::new(0.42, 1.06, 0.36),
+        ),
+        GarmentKind::Dress => (
+            &with_bell,
+            &dress_region,
+            Vec3::new(0.0, 0.50, -0.36),
+            Vec3::new(0.45, 1.60, 0.36),
+        ),
     };
     let spec = SurfaceSpec {
         field,
@@ -146,8 +173,15 @@ pub fn garment_mesh(kind: GarmentKind, vertices: usize) -> Result<TriMesh, Scene
 
 /// Builds a built-in garment on `avatar` (which must be the mannequin) with the kind's
 /// recommended options unless `options` is given.
-pub fn garment(avatar: &Avatar, kind: GarmentKind, vertices: usize, options: Option<&GarmentOptions>) -> Result<Garment, SceneError> {
+pub fn garment(
+    avatar: &Avatar,
+    kind: GarmentKind,
+    vertices: usize,
+    options: Option<&GarmentOptions>,
+) -> Result<Garment, SceneError> {
     let mesh = garment_mesh(kind, vertices)?;
-    let options = options.cloned().unwrap_or_else(|| kind.recommended_options());
+    let options = options
+        .cloned()
+        .unwrap_or_else(|| kind.recommended_options());
     Garment::new(kind.name(), mesh, avatar, &options)
 }

@@ -6,7 +6,9 @@ use crate::geometry::{Mat4, SkinWeights, Vec3};
 
 use super::super::skeleton::{JointTransform, Skeleton};
 use super::super::{Avatar, SceneError};
-use super::body::{BodySdf, JOINT_COUNT, JOINT_NAMES, JOINT_PARENTS, mirror_joint, rest_joint_positions};
+use super::body::{
+    BodySdf, JOINT_COUNT, JOINT_NAMES, JOINT_PARENTS, mirror_joint, rest_joint_positions,
+};
 use super::surface::{self, SurfaceSpec};
 
 /// Name of the built-in avatar.
@@ -43,7 +45,9 @@ pub fn skeleton() -> Result<Skeleton, SceneError> {
     let mut inverse = Vec::with_capacity(JOINT_COUNT);
     for (j, m) in sk.world_from_joint(&rest).iter().enumerate() {
         let Some(inv) = m.try_inverse() else {
-            return Err(SceneError::InvalidSkeleton(format!("rest transform of joint {j} is singular")));
+            return Err(SceneError::InvalidSkeleton(format!(
+                "rest transform of joint {j} is singular"
+            )));
         };
         inverse.push(inv);
     }
@@ -56,33 +60,41 @@ pub fn skeleton() -> Result<Skeleton, SceneError> {
 /// uniform Laplacian averaging over `neighbours` (the mesh's vertex rings), so joints blend
 /// over a few centimetres along the surface but not across to a neighbouring limb; four
 /// largest influences, normalised.
-pub fn skin_weights(body: &BodySdf, positions: &[Vec3], neighbours: &[Vec<u32>], smoothing_passes: usize) -> SkinWeights {
-    let mut dense: Vec<Vec<(u16, f32)>> = positions.iter().map(|p| {
-        let mirrored = Vec3::new(-p.x, p.y, p.z);
-        let mut list: Vec<(u16, f32)> = Vec::with_capacity(2 * body.parts.len());
-        for part in &body.parts {
-            let d = part.shape.distance(p);
-            list.push((part.joint as u16, d));
-            let m = mirror_joint(part.joint);
-            if m != part.joint {
-                list.push((m as u16, part.shape.distance(&mirrored)));
-            }
-        }
-        let nearest = list.iter().map(|e| e.1).fold(f32::INFINITY, f32::min);
-        let mut merged: Vec<(u16, f32)> = Vec::new();
-        for (j, d) in list {
-            let w = (-(d - nearest) / SKIN_FALLOFF_M).exp();
-            if w > 1e-4 {
-                match merged.iter_mut().find(|e| e.0 == j) {
-                    Some(e) => e.1 += w,
-                    None => merged.push((j, w)),
+pub fn skin_weights(
+    body: &BodySdf,
+    positions: &[Vec3],
+    neighbours: &[Vec<u32>],
+    smoothing_passes: usize,
+) -> SkinWeights {
+    let mut dense: Vec<Vec<(u16, f32)>> = positions
+        .iter()
+        .map(|p| {
+            let mirrored = Vec3::new(-p.x, p.y, p.z);
+            let mut list: Vec<(u16, f32)> = Vec::with_capacity(2 * body.parts.len());
+            for part in &body.parts {
+                let d = part.shape.distance(p);
+                list.push((part.joint as u16, d));
+                let m = mirror_joint(part.joint);
+                if m != part.joint {
+                    list.push((m as u16, part.shape.distance(&mirrored)));
                 }
             }
-        }
-        let total: f32 = merged.iter().map(|e| e.1).sum();
-        merged.iter_mut().for_each(|e| e.1 /= total.max(1e-12));
-        merged
-    }).collect();
+            let nearest = list.iter().map(|e| e.1).fold(f32::INFINITY, f32::min);
+            let mut merged: Vec<(u16, f32)> = Vec::new();
+            for (j, d) in list {
+                let w = (-(d - nearest) / SKIN_FALLOFF_M).exp();
+                if w > 1e-4 {
+                    match merged.iter_mut().find(|e| e.0 == j) {
+                        Some(e) => e.1 += w,
+                        None => merged.push((j, w)),
+                    }
+                }
+            }
+            let total: f32 = merged.iter().map(|e| e.1).sum();
+            merged.iter_mut().for_each(|e| e.1 /= total.max(1e-12));
+            merged
+        })
+        .collect();
     for _ in 0..smoothing_passes {
         dense = (0..dense.len())
             .map(|v| {
@@ -125,9 +137,15 @@ pub fn mannequin_with_vertices(vertices: usize) -> Result<Avatar, SceneError> {
         target_vertices: vertices.max(300),
         area_estimate_m2: 1.8,
     };
-    let mesh = surface::build(&spec).map_err(|reason| SceneError::InvalidSkeleton(format!("mannequin body: {reason}")))?;
+    let mesh = surface::build(&spec)
+        .map_err(|reason| SceneError::InvalidSkeleton(format!("mannequin body: {reason}")))?;
     let topology = crate::geometry::Topology::new(&mesh);
-    let skin = skin_weights(&body, &mesh.positions, &topology.neighbours, SKIN_SMOOTHING_PASSES);
+    let skin = skin_weights(
+        &body,
+        &mesh.positions,
+        &topology.neighbours,
+        SKIN_SMOOTHING_PASSES,
+    );
     Avatar::new(MANNEQUIN_NAME, skeleton, mesh, skin, Vec::new())
 }
 

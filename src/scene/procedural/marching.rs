@@ -27,7 +27,14 @@ const T_MIN: f32 = 0.05;
 /// The six Freudenthal tetrahedra of a unit cube (corner bit 1 = +x, 2 = +y, 4 = +z), each
 /// ordered to have positive orientation.
 fn tetrahedra() -> [[usize; 4]; 6] {
-    let perms = [[1, 2, 4], [1, 4, 2], [2, 1, 4], [2, 4, 1], [4, 1, 2], [4, 2, 1]];
+    let perms = [
+        [1, 2, 4],
+        [1, 4, 2],
+        [2, 1, 4],
+        [2, 4, 1],
+        [4, 1, 2],
+        [4, 2, 1],
+    ];
     let corner = |c: usize| Vec3::new((c & 1) as f32, ((c >> 1) & 1) as f32, ((c >> 2) & 1) as f32);
     perms.map(|[a, b, _]| {
         let mut t = [0, a, a | b, 7];
@@ -54,7 +61,9 @@ fn is_even(p: &[usize; 4]) -> bool {
 
 /// An even permutation of `0..4` that starts with `first` (and then `second`, when given).
 fn even_order(first: usize, second: Option<usize>) -> [usize; 4] {
-    let mut rest: Vec<usize> = (0..4).filter(|&k| k != first && Some(k) != second).collect();
+    let mut rest: Vec<usize> = (0..4)
+        .filter(|&k| k != first && Some(k) != second)
+        .collect();
     let mut p = [first, 0, 0, 0];
     let mut k = 1;
     if let Some(s) = second {
@@ -73,13 +82,20 @@ fn even_order(first: usize, second: Option<usize>) -> [usize; 4] {
 /// Extracts the zero level set of `field` over `[0, hi.x] x [lo.y, hi.y] x [lo.z, hi.z]` with
 /// cubic cells of side `h_m`. The surface is open only on the plane `x = 0`, where its
 /// vertices have `x == 0.0` exactly. `lo.x` is ignored. Positive field values are outside.
-pub fn extract_half(field: &(dyn Fn(&Vec3) -> f32 + Sync), lo: Vec3, hi: Vec3, h_m: f32) -> HalfMesh {
+pub fn extract_half(
+    field: &(dyn Fn(&Vec3) -> f32 + Sync),
+    lo: Vec3,
+    hi: Vec3,
+    h_m: f32,
+) -> HalfMesh {
     let n = [
         ((hi.x / h_m).ceil() as usize).max(1) + 1,
         (((hi.y - lo.y) / h_m).ceil() as usize).max(1) + 1,
         (((hi.z - lo.z) / h_m).ceil() as usize).max(1) + 1,
     ];
-    let point = |i: usize, j: usize, k: usize| Vec3::new(i as f32 * h_m, lo.y + j as f32 * h_m, lo.z + k as f32 * h_m);
+    let point = |i: usize, j: usize, k: usize| {
+        Vec3::new(i as f32 * h_m, lo.y + j as f32 * h_m, lo.z + k as f32 * h_m)
+    };
     let plane = n[0] * n[1];
     let values: Vec<f32> = (0..n[2])
         .into_par_iter()
@@ -112,8 +128,9 @@ pub fn extract_half(field: &(dyn Fn(&Vec3) -> f32 + Sync), lo: Vec3, hi: Vec3, h
     for k in 0..n[2] - 1 {
         for j in 0..n[1] - 1 {
             for i in 0..n[0] - 1 {
-                let corners: [usize; 8] =
-                    std::array::from_fn(|c| index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1)));
+                let corners: [usize; 8] = std::array::from_fn(|c| {
+                    index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))
+                });
                 let inside: [bool; 8] = corners.map(|g| values[g] < 0.0);
                 if inside.iter().all(|&x| x) || inside.iter().all(|&x| !x) {
                     continue;
@@ -128,7 +145,8 @@ pub fn extract_half(field: &(dyn Fn(&Vec3) -> f32 + Sync), lo: Vec3, hi: Vec3, h
                             let p = even_order(lone, None);
                             let mut e = |v: usize, m: &mut HalfMesh| vertex_on(g[p[0]], g[p[v]], m);
                             let (a, b, c) = (e(1, &mut mesh), e(2, &mut mesh), e(3, &mut mesh));
-                            mesh.faces.push(if count == 1 { [a, b, c] } else { [a, c, b] });
+                            mesh.faces
+                                .push(if count == 1 { [a, b, c] } else { [a, c, b] });
                         }
                         2 => {
                             let first = (0..4).find(|&v| ins[v]).unwrap_or(0);
@@ -177,7 +195,10 @@ pub fn clip(mesh: &HalfMesh, region: &(dyn Fn(&Vec3) -> f32 + Sync), snap_m: f32
             }
         })
         .collect();
-    let mut out = HalfMesh { positions: mesh.positions.clone(), faces: Vec::new() };
+    let mut out = HalfMesh {
+        positions: mesh.positions.clone(),
+        faces: Vec::new(),
+    };
     let mut cuts: HashMap<(u32, u32), u32> = HashMap::new();
     for face in &mesh.faces {
         let rv = face.map(|v| r[v as usize]);
@@ -200,7 +221,10 @@ pub fn clip(mesh: &HalfMesh, region: &(dyn Fn(&Vec3) -> f32 + Sync), snap_m: f32
                 let v = *cuts.entry(key).or_insert_with(|| {
                     let (r0, r1) = (r[key.0 as usize], r[key.1 as usize]);
                     let t = r0 / (r0 - r1);
-                    let (p0, p1) = (mesh.positions[key.0 as usize], mesh.positions[key.1 as usize]);
+                    let (p0, p1) = (
+                        mesh.positions[key.0 as usize],
+                        mesh.positions[key.1 as usize],
+                    );
                     let mut p = p0 + (p1 - p0) * t;
                     if p0.x == 0.0 && p1.x == 0.0 {
                         p.x = 0.0;
@@ -254,7 +278,11 @@ pub fn mirror(mesh: &HalfMesh) -> HalfMesh {
         })
         .collect();
     for f in &mesh.faces {
-        out.faces.push([image[f[0] as usize], image[f[2] as usize], image[f[1] as usize]]);
+        out.faces.push([
+            image[f[0] as usize],
+            image[f[2] as usize],
+            image[f[1] as usize],
+        ]);
     }
     out
 }
@@ -284,12 +312,22 @@ pub fn largest_component(mesh: &HalfMesh) -> HalfMesh {
     for &r in &roots {
         *count.entry(r).or_default() += 1;
     }
-    let Some(best) = count.into_iter().max_by_key(|&(r, c)| (c, std::cmp::Reverse(r))).map(|(r, _)| r) else {
+    let Some(best) = count
+        .into_iter()
+        .max_by_key(|&(r, c)| (c, std::cmp::Reverse(r)))
+        .map(|(r, _)| r)
+    else {
         return HalfMesh::default();
     };
     let kept = HalfMesh {
         positions: mesh.positions.clone(),
-        faces: mesh.faces.iter().zip(&roots).filter(|&(_, &r)| r == best).map(|(f, _)| *f).collect(),
+        faces: mesh
+            .faces
+            .iter()
+            .zip(&roots)
+            .filter(|&(_, &r)| r == best)
+            .map(|(f, _)| *f)
+            .collect(),
     };
     compact(&kept)
 }
@@ -312,7 +350,12 @@ mod tests {
 
     fn sphere_mesh(h: f32) -> HalfMesh {
         let field = |p: &Vec3| (p - Vec3::new(0.0, 0.5, 0.0)).norm() - 0.3;
-        let half = extract_half(&field, Vec3::new(0.0, 0.1, -0.4), Vec3::new(0.4, 0.9, 0.4), h);
+        let half = extract_half(
+            &field,
+            Vec3::new(0.0, 0.1, -0.4),
+            Vec3::new(0.4, 0.9, 0.4),
+            h,
+        );
         mirror(&half)
     }
 
@@ -321,7 +364,11 @@ mod tests {
         let m = sphere_mesh(0.05);
         let tri = TriMesh::new(m.positions.clone(), m.faces.clone()).unwrap();
         let topo = Topology::new(&tri);
-        assert!(topo.boundary_edges.is_empty(), "{} boundary edges", topo.boundary_edges.len());
+        assert!(
+            topo.boundary_edges.is_empty(),
+            "{} boundary edges",
+            topo.boundary_edges.len()
+        );
         assert!(tri.report().is_clean(), "{:?}", tri.report());
         let volume: f32 = (0..tri.faces.len())
             .map(|f| {
@@ -341,13 +388,17 @@ mod tests {
         let m = sphere_mesh(0.04);
         let cut = clip(&m, &|p: &Vec3| p.y - 0.6, 0.004);
         let tri = TriMesh::new(cut.positions.clone(), cut.faces.clone()).unwrap();
-        assert!(tri.positions.iter().all(|p| p.y <= 0.6 + 1e-5));
+        // Vertices within the snap distance of the cut count as on it.
+        assert!(tri.positions.iter().all(|p| p.y <= 0.6 + 0.004 + 1e-5));
+        assert!(tri.positions.iter().any(|p| p.y > 0.59));
         assert!(!Topology::new(&tri).boundary_edges.is_empty());
         assert!(tri.report().non_manifold_edges.is_empty());
         // A band cut out of the middle leaves two caps; the largest one is kept.
         let two = clip(&m, &|p: &Vec3| 0.05 - (p.y - 0.45).abs(), 0.004);
         let one = largest_component(&two);
         assert!(one.faces.len() < two.faces.len());
-        assert!(one.positions.iter().all(|p| p.y < 0.45) || one.positions.iter().all(|p| p.y > 0.45));
+        assert!(
+            one.positions.iter().all(|p| p.y < 0.45) || one.positions.iter().all(|p| p.y > 0.45)
+        );
     }
 }

@@ -27,12 +27,20 @@ use super::{Avatar, Garment, GarmentOptions, Motion, Scene, SceneError};
 pub fn default_scene() -> Result<Scene, SceneError> {
     build_builtin(&SceneConfig::default_scene()).map_err(|e| match e {
         ConfigError::Scene(e) => e,
-        other => SceneError::InvalidGarment { name: "default scene".into(), reason: other.to_string() },
+        other => SceneError::InvalidGarment {
+            name: "default scene".into(),
+            reason: other.to_string(),
+        },
     })
 }
 
 /// A built-in motion for the mannequin, named `name` or after its kind.
-pub fn builtin_motion(kind: MotionKind, fps: f32, duration_secs: f32, name: Option<&str>) -> Result<Motion, SceneError> {
+pub fn builtin_motion(
+    kind: MotionKind,
+    fps: f32,
+    duration_secs: f32,
+    name: Option<&str>,
+) -> Result<Motion, SceneError> {
     let mut m = motion(kind, fps, duration_secs)?;
     if let Some(name) = name {
         m.name = name.to_string();
@@ -42,7 +50,12 @@ pub fn builtin_motion(kind: MotionKind, fps: f32, duration_secs: f32, name: Opti
 
 /// A built-in garment on the mannequin `avatar`, `smoothing_passes` overriding the kind's
 /// recommended skin-weight smoothing.
-pub fn builtin_garment(avatar: &Avatar, kind: GarmentKind, vertices: usize, smoothing_passes: Option<usize>) -> Result<Garment, SceneError> {
+pub fn builtin_garment(
+    avatar: &Avatar,
+    kind: GarmentKind,
+    vertices: usize,
+    smoothing_passes: Option<usize>,
+) -> Result<Garment, SceneError> {
     let mut options: GarmentOptions = kind.recommended_options();
     if let Some(passes) = smoothing_passes {
         options.smoothing_passes = passes;
@@ -55,23 +68,49 @@ pub fn builtin_garment(avatar: &Avatar, kind: GarmentKind, vertices: usize, smoo
 pub fn build_builtin(config: &SceneConfig) -> Result<Scene, ConfigError> {
     config.validate()?;
     let AvatarSource::Builtin { .. } = &config.avatar else {
-        return Err(ConfigError::NotBuiltin { field: "avatar".into() });
+        return Err(ConfigError::NotBuiltin {
+            field: "avatar".into(),
+        });
     };
-    let GarmentSource::Builtin { builtin, resolution, smoothing_passes } = &config.garment else {
-        return Err(ConfigError::NotBuiltin { field: "garment".into() });
+    let GarmentSource::Builtin {
+        builtin,
+        resolution,
+        smoothing_passes,
+    } = &config.garment
+    else {
+        return Err(ConfigError::NotBuiltin {
+            field: "garment".into(),
+        });
     };
     let mut specs = Vec::with_capacity(config.motions.len());
     for (k, source) in config.motions.iter().enumerate() {
-        let MotionSource::Builtin { builtin, duration_secs, fps, split, name } = source else {
-            return Err(ConfigError::NotBuiltin { field: format!("motions[{k}]") });
+        let MotionSource::Builtin {
+            builtin,
+            duration_secs,
+            fps,
+            split,
+            name,
+        } = source
+        else {
+            return Err(ConfigError::NotBuiltin {
+                field: format!("motions[{k}]"),
+            });
         };
-        specs.push((*builtin, fps.unwrap_or(config.training_fps), *duration_secs, *split, name.clone()));
+        specs.push((
+            *builtin,
+            fps.unwrap_or(config.training_fps),
+            *duration_secs,
+            *split,
+            name.clone(),
+        ));
     }
     let avatar = mannequin()?;
     let garment = builtin_garment(&avatar, *builtin, *resolution, *smoothing_passes)?;
     let motions: Vec<(Motion, Split)> = specs
         .into_iter()
-        .map(|(kind, fps, duration, split, name)| Ok((builtin_motion(kind, fps, duration, name.as_deref())?, split)))
+        .map(|(kind, fps, duration, split, name)| {
+            Ok((builtin_motion(kind, fps, duration, name.as_deref())?, split))
+        })
         .collect::<Result<_, SceneError>>()?;
     Ok(config.assemble(avatar, garment, motions)?)
 }

@@ -38,8 +38,14 @@ pub enum MotionKind {
 
 impl MotionKind {
     /// All kinds.
-    pub const ALL: [MotionKind; 6] =
-        [MotionKind::Idle, MotionKind::Walk, MotionKind::Run, MotionKind::Jump, MotionKind::Turn, MotionKind::Spin];
+    pub const ALL: [MotionKind; 6] = [
+        MotionKind::Idle,
+        MotionKind::Walk,
+        MotionKind::Run,
+        MotionKind::Jump,
+        MotionKind::Turn,
+        MotionKind::Spin,
+    ];
 
     /// Name used in configs and as the motion name.
     pub fn name(self) -> &'static str {
@@ -61,7 +67,9 @@ impl MotionKind {
     /// The split this motion gets in the default scene.
     pub fn default_split(self) -> Split {
         match self {
-            MotionKind::Idle | MotionKind::Walk | MotionKind::Run | MotionKind::Jump => Split::Train,
+            MotionKind::Idle | MotionKind::Walk | MotionKind::Run | MotionKind::Jump => {
+                Split::Train
+            }
             MotionKind::Turn => Split::Validation,
             MotionKind::Spin => Split::Test,
         }
@@ -133,7 +141,9 @@ fn bump(p: f32, c: f32, w: f32) -> f32 {
 
 /// Cubic Hermite interpolation through `(time, value, slope)` keys, clamped at the ends.
 fn hermite(keys: &[(f32, f32, f32)], t: f32) -> f32 {
-    let (Some(first), Some(last)) = (keys.first(), keys.last()) else { return 0.0 };
+    let (Some(first), Some(last)) = (keys.first(), keys.last()) else {
+        return 0.0;
+    };
     if t <= first.0 {
         return first.1;
     }
@@ -157,7 +167,7 @@ fn hermite(keys: &[(f32, f32, f32)], t: f32) -> f32 {
 
 /// Knee flexion (rad) that shortens the hip-ankle distance by `drop_m`.
 fn leg_bend(drop_m: f32) -> f32 {
-    if !(drop_m > 0.0) {
+    if drop_m.is_nan() || drop_m <= 0.0 {
         return 0.0;
     }
     let p = rest_joint_positions();
@@ -176,7 +186,10 @@ struct PoseBuilder {
 
 impl PoseBuilder {
     fn new() -> Self {
-        Self { rotations: [Quat::identity(); JOINT_COUNT], root: rest_joint_positions()[HIPS] }
+        Self {
+            rotations: [Quat::identity(); JOINT_COUNT],
+            root: rest_joint_positions()[HIPS],
+        }
     }
 
     /// Sets a left joint to `left` and its right counterpart to the mirror of `right`
@@ -187,7 +200,10 @@ impl PoseBuilder {
     }
 
     fn finish(self) -> Pose {
-        Pose { rotations: self.rotations.to_vec(), root_translation: self.root }
+        Pose {
+            rotations: self.rotations.to_vec(),
+            root_translation: self.root,
+        }
     }
 }
 
@@ -203,7 +219,8 @@ struct Gait {
 fn gait_side(g: &Gait, p: f32, e: f32) -> [Quat; 5] {
     let c = (TAU * p).cos();
     let hip = e * (g.hip_flex[0] + g.hip_flex[1] * c);
-    let knee = e * (g.knee_stance * bump(p, 0.12, 0.08) + g.knee_swing * bump(p, g.hip_flex[2], 0.12));
+    let knee =
+        e * (g.knee_stance * bump(p, 0.12, 0.08) + g.knee_swing * bump(p, g.hip_flex[2], 0.12));
     let ankle = 0.5 * (hip - knee) + e * 0.2 * bump(p, 0.55, 0.08);
     let arm = e * g.arm_swing * (TAU * (p + 0.5)).cos();
     let elbow = e * (g.elbow[0] + g.elbow[1] * (1.0 + (TAU * (p + 0.5)).cos()));
@@ -213,7 +230,10 @@ fn gait_side(g: &Gait, p: f32, e: f32) -> [Quat; 5] {
 fn apply_gait(b: &mut PoseBuilder, g: &Gait, phase: f32, e: f32) {
     let l = gait_side(g, phase, e);
     let r = gait_side(g, phase + 0.5, e);
-    for (k, joint) in [LEFT_UP_LEG, LEFT_LEG, LEFT_FOOT, LEFT_ARM, LEFT_FORE_ARM].into_iter().enumerate() {
+    for (k, joint) in [LEFT_UP_LEG, LEFT_LEG, LEFT_FOOT, LEFT_ARM, LEFT_FORE_ARM]
+        .into_iter()
+        .enumerate()
+    {
         b.pair(joint, l[k], r[k]);
     }
 }
@@ -222,9 +242,21 @@ fn walk_or_run(t: f32, duration: f32, run: bool) -> Pose {
     let e = envelope(t, duration);
     let (period, speed) = if run { (0.72, 3.2) } else { (1.1, 1.25) };
     let gait = if run {
-        Gait { hip_flex: [0.1, 0.5, 0.62], knee_stance: 0.45, knee_swing: 1.6, arm_swing: 0.45, elbow: [1.2, 0.08] }
+        Gait {
+            hip_flex: [0.1, 0.5, 0.62],
+            knee_stance: 0.45,
+            knee_swing: 1.6,
+            arm_swing: 0.45,
+            elbow: [1.2, 0.08],
+        }
     } else {
-        Gait { hip_flex: [0.05, 0.33, 0.7], knee_stance: 0.18, knee_swing: 1.0, arm_swing: 0.28, elbow: [0.3, 0.06] }
+        Gait {
+            hip_flex: [0.05, 0.33, 0.7],
+            knee_stance: 0.18,
+            knee_swing: 1.0,
+            arm_swing: 0.28,
+            elbow: [0.3, 0.06],
+        }
     };
     let phase = t / period;
     let mut b = PoseBuilder::new();
@@ -279,9 +311,22 @@ fn jump(t: f32) -> Pose {
     );
     let airborne = tc > TAKEOFF && tc < land;
     let drop = if airborne { 0.0 } else { (-lift).max(0.0) };
-    let knee = if airborne { 0.5 * (PI * (tc - TAKEOFF) / flight).sin() } else { leg_bend(drop) };
+    let knee = if airborne {
+        0.5 * (PI * (tc - TAKEOFF) / flight).sin()
+    } else {
+        leg_bend(drop)
+    };
     let lean = 1.5 * drop;
-    let arm = hermite(&[(0.0, 0.0, 0.0), (0.45, 0.6, 0.0), (0.75, -1.1, 0.0), (land + 0.1, -0.3, 0.0), (CYCLE, 0.0, 0.0)], tc);
+    let arm = hermite(
+        &[
+            (0.0, 0.0, 0.0),
+            (0.45, 0.6, 0.0),
+            (0.75, -1.1, 0.0),
+            (land + 0.1, -0.3, 0.0),
+            (CYCLE, 0.0, 0.0),
+        ],
+        tc,
+    );
     let mut b = PoseBuilder::new();
     b.rotations[HIPS] = rx(lean);
     b.rotations[SPINE] = rx(-0.4 * lean);
@@ -332,7 +377,11 @@ fn spin(t: f32, duration: f32) -> Pose {
 
 /// The pose of motion `kind` at `t_secs` into a take lasting `duration_secs`.
 pub fn pose_at(kind: MotionKind, t_secs: f32, duration_secs: f32) -> Pose {
-    let t = if t_secs.is_finite() { t_secs.max(0.0) } else { 0.0 };
+    let t = if t_secs.is_finite() {
+        t_secs.max(0.0)
+    } else {
+        0.0
+    };
     match kind {
         MotionKind::Idle => idle(t),
         MotionKind::Walk => walk_or_run(t, duration_secs, false),
@@ -346,15 +395,24 @@ pub fn pose_at(kind: MotionKind, t_secs: f32, duration_secs: f32) -> Pose {
 /// Samples motion `kind` at `fps` frames per second (0 < fps <= 10000) for `duration_secs`
 /// seconds (0..=3600); the motion is named after the kind.
 pub fn motion(kind: MotionKind, fps: f32, duration_secs: f32) -> Result<Motion, SceneError> {
-    let invalid = |reason: String| SceneError::InvalidMotion { name: kind.name().into(), reason };
+    let invalid = |reason: String| SceneError::InvalidMotion {
+        name: kind.name().into(),
+        reason,
+    };
     if !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0) {
-        return Err(invalid(format!("frame rate {fps} is outside (0, 10000] frames per second")));
+        return Err(invalid(format!(
+            "frame rate {fps} is outside (0, 10000] frames per second"
+        )));
     }
     if !(duration_secs.is_finite() && (0.0..=3600.0).contains(&duration_secs)) {
-        return Err(invalid(format!("duration {duration_secs} s is outside 0..=3600 s")));
+        return Err(invalid(format!(
+            "duration {duration_secs} s is outside 0..=3600 s"
+        )));
     }
     let frames = (duration_secs * fps + 1e-3).floor() as usize + 1;
-    let poses = (0..frames).map(|k| pose_at(kind, k as f32 / fps, duration_secs)).collect();
+    let poses = (0..frames)
+        .map(|k| pose_at(kind, k as f32 / fps, duration_secs))
+        .collect();
     Motion::new(kind.name(), fps, poses, JOINT_COUNT)
 }
 
@@ -382,7 +440,11 @@ mod tests {
     fn hermite_reproduces_ballistic_flight() {
         let v = 2.2;
         let f = 2.0 * v / GRAVITY;
-        let keys = [(0.0, 0.0, v), (0.5 * f, v * v / (2.0 * GRAVITY), 0.0), (f, 0.0, -v)];
+        let keys = [
+            (0.0, 0.0, v),
+            (0.5 * f, v * v / (2.0 * GRAVITY), 0.0),
+            (f, 0.0, -v),
+        ];
         for k in 0..=10 {
             let t = k as f32 * f / 10.0;
             assert!((hermite(&keys, t) - (v * t - 0.5 * GRAVITY * t * t)).abs() < 1e-5);
@@ -396,7 +458,10 @@ mod tests {
             for q in &pose.rotations {
                 assert!(q.angle() < 1e-5, "{kind:?}");
             }
-            assert!((pose.root_translation - Vec3::new(0.0, 0.95, 0.0)).norm() < 1e-5, "{kind:?}");
+            assert!(
+                (pose.root_translation - Vec3::new(0.0, 0.95, 0.0)).norm() < 1e-5,
+                "{kind:?}"
+            );
         }
         assert!(MotionKind::from_name("walk") == Some(MotionKind::Walk));
         assert!(leg_bend(0.0) < 1e-3 && leg_bend(0.16) > 0.5);

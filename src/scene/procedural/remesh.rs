@@ -65,7 +65,11 @@ impl Editable {
 
     /// Faces containing both `a` and `b`.
     fn edge_faces(&self, a: u32, b: u32) -> Vec<u32> {
-        self.vf[a as usize].iter().copied().filter(|&f| self.faces[f as usize].contains(&b)).collect()
+        self.vf[a as usize]
+            .iter()
+            .copied()
+            .filter(|&f| self.faces[f as usize].contains(&b))
+            .collect()
     }
 
     /// (on a boundary, on a clip boundary) for vertex `v`.
@@ -85,7 +89,11 @@ impl Editable {
 
     fn normal_with(&self, f: u32, moved: &[(u32, Vec3)]) -> Vec3 {
         let p = self.faces[f as usize].map(|v| {
-            moved.iter().find(|(m, _)| *m == v).map(|(_, p)| *p).unwrap_or(self.pos[v as usize])
+            moved
+                .iter()
+                .find(|(m, _)| *m == v)
+                .map(|(_, p)| *p)
+                .unwrap_or(self.pos[v as usize])
         });
         (p[1] - p[0]).cross(&(p[2] - p[0]))
     }
@@ -106,13 +114,21 @@ impl Editable {
         let (ra, rb) = (rank(seam_a, clip_a), rank(seam_b, clip_b));
         let mid = (self.pos[a as usize] + self.pos[b as usize]) * 0.5;
         let (keep, gone, target) = if seam_a != seam_b {
-            let (s, o, rs, ro) = if seam_a { (a, b, ra, rb) } else { (b, a, rb, ra) };
+            let (s, o, rs, ro) = if seam_a {
+                (a, b, ra, rb)
+            } else {
+                (b, a, rb, ra)
+            };
             if rs < ro {
                 return None;
             }
             (s, o, self.pos[s as usize])
         } else if ra != rb {
-            if ra > rb { (a, b, self.pos[a as usize]) } else { (b, a, self.pos[b as usize]) }
+            if ra > rb {
+                (a, b, self.pos[a as usize])
+            } else {
+                (b, a, self.pos[b as usize])
+            }
         } else {
             match ra {
                 0 => (a, b, project(field, mid, false)),
@@ -123,7 +139,11 @@ impl Editable {
         };
         // Link condition: the common neighbours are exactly the opposite vertices.
         let (na, nb) = (self.neighbours(keep), self.neighbours(gone));
-        let common: Vec<u32> = na.iter().copied().filter(|v| nb.binary_search(v).is_ok()).collect();
+        let common: Vec<u32> = na
+            .iter()
+            .copied()
+            .filter(|v| nb.binary_search(v).is_ok())
+            .collect();
         let mut opposite: Vec<u32> = shared
             .iter()
             .flat_map(|&f| self.faces[f as usize])
@@ -158,15 +178,23 @@ impl Editable {
         let keep_seam_after = target.x == 0.0;
         for &f in &self.vf[gone as usize] {
             let face = self.faces[f as usize];
-            let all_seam = face
-                .iter()
-                .all(|&v| if v == gone || v == keep { keep_seam_after } else { self.seam(v) });
+            let all_seam = face.iter().all(|&v| {
+                if v == gone || v == keep {
+                    keep_seam_after
+                } else {
+                    self.seam(v)
+                }
+            });
             if !shared.contains(&f) && all_seam {
                 return None;
             }
         }
         let moved = [(keep, target), (gone, target)];
-        let around: Vec<u32> = self.vf[keep as usize].iter().chain(&self.vf[gone as usize]).copied().collect();
+        let around: Vec<u32> = self.vf[keep as usize]
+            .iter()
+            .chain(&self.vf[gone as usize])
+            .copied()
+            .collect();
         for &f in &around {
             if shared.contains(&f) {
                 continue;
@@ -199,8 +227,17 @@ impl Editable {
     }
 
     fn into_half_mesh(self) -> HalfMesh {
-        let faces = self.faces.iter().zip(&self.face_alive).filter(|(_, a)| **a).map(|(f, _)| *f).collect();
-        super::marching::compact(&HalfMesh { positions: self.pos, faces })
+        let faces = self
+            .faces
+            .iter()
+            .zip(&self.face_alive)
+            .filter(|(_, a)| **a)
+            .map(|(f, _)| *f)
+            .collect();
+        super::marching::compact(&HalfMesh {
+            positions: self.pos,
+            faces,
+        })
     }
 }
 
@@ -234,16 +271,24 @@ fn project(field: Field, mut p: Vec3, on_seam: bool) -> Vec3 {
 
 /// Collapses the shortest edges until the mirrored mesh would have at most `target_vertices`
 /// vertices (seam vertices count once) or nothing more can be collapsed.
-pub fn simplify(mesh: &HalfMesh, target_vertices: usize, field: Field, max_edge_m: f32) -> HalfMesh {
+pub fn simplify(
+    mesh: &HalfMesh,
+    target_vertices: usize,
+    field: Field,
+    max_edge_m: f32,
+) -> HalfMesh {
     let mut m = Editable::new(mesh);
     let count = |m: &Editable| {
         let alive = m.alive.iter().filter(|&&a| a).count();
-        let seam = (0..m.pos.len()).filter(|&v| m.alive[v] && m.pos[v].x == 0.0).count();
+        let seam = (0..m.pos.len())
+            .filter(|&v| m.alive[v] && m.pos[v].x == 0.0)
+            .count();
         2 * alive - seam
     };
     let mut vertices = count(&m);
     let mut heap = BinaryHeap::new();
-    let key = |m: &Editable, a: u32, b: u32| (m.pos[a as usize] - m.pos[b as usize]).norm().to_bits();
+    let key =
+        |m: &Editable, a: u32, b: u32| (m.pos[a as usize] - m.pos[b as usize]).norm().to_bits();
     for f in &m.faces {
         for k in 0..3 {
             let (a, b) = (f[k], f[(k + 1) % 3]);
@@ -253,7 +298,9 @@ pub fn simplify(mesh: &HalfMesh, target_vertices: usize, field: Field, max_edge_
         }
     }
     while vertices > target_vertices {
-        let Some(Reverse((len, a, b))) = heap.pop() else { break };
+        let Some(Reverse((len, a, b))) = heap.pop() else {
+            break;
+        };
         if !(m.alive[a as usize] && m.alive[b as usize]) || key(&m, a, b) != len {
             continue;
         }
@@ -280,7 +327,8 @@ pub fn flip_edges(mesh: &HalfMesh, passes: usize) -> HalfMesh {
         (u - p).angle(&(w - p))
     };
     for _ in 0..passes {
-        let mut edges: std::collections::HashMap<(u32, u32), Vec<usize>> = std::collections::HashMap::new();
+        let mut edges: std::collections::HashMap<(u32, u32), Vec<usize>> =
+            std::collections::HashMap::new();
         let mut ring: Vec<std::collections::HashSet<u32>> = vec![Default::default(); pos.len()];
         for (f, face) in faces.iter().enumerate() {
             for k in 0..3 {
@@ -295,19 +343,25 @@ pub fn flip_edges(mesh: &HalfMesh, passes: usize) -> HalfMesh {
         let mut touched = vec![false; faces.len()];
         let mut flipped = 0;
         for (a, b) in keys {
-            let [f0, f1] = edges[&(a, b)].as_slice() else { continue };
+            let [f0, f1] = edges[&(a, b)].as_slice() else {
+                continue;
+            };
             let (f0, f1) = (*f0, *f1);
             if touched[f0] || touched[f1] {
                 continue;
             }
             // Orient so that f0 holds the half-edge a -> b.
-            let has = |f: usize, x: u32, y: u32| (0..3).any(|k| faces[f][k] == x && faces[f][(k + 1) % 3] == y);
+            let has = |f: usize, x: u32, y: u32| {
+                (0..3).any(|k| faces[f][k] == x && faces[f][(k + 1) % 3] == y)
+            };
             let (f0, f1) = if has(f0, a, b) { (f0, f1) } else { (f1, f0) };
             if !has(f0, a, b) || !has(f1, b, a) {
                 continue;
             }
             let other = |f: usize| faces[f].iter().copied().find(|&v| v != a && v != b);
-            let (Some(c), Some(d)) = (other(f0), other(f1)) else { continue };
+            let (Some(c), Some(d)) = (other(f0), other(f1)) else {
+                continue;
+            };
             if c == d || ring[c as usize].contains(&d) || (seam(c) && seam(d)) {
                 continue;
             }
@@ -334,7 +388,10 @@ pub fn flip_edges(mesh: &HalfMesh, passes: usize) -> HalfMesh {
             break;
         }
     }
-    HalfMesh { positions: mesh.positions.clone(), faces }
+    HalfMesh {
+        positions: mesh.positions.clone(),
+        faces,
+    }
 }
 
 fn tri_normal(pos: &[Vec3], f: [u32; 3]) -> Vec3 {
@@ -356,7 +413,11 @@ pub fn relax(mesh: &HalfMesh, field: Field, region: Option<Field>, iterations: u
             if !kinds[v as usize].1 {
                 return Vec::new();
             }
-            neighbours[v as usize].iter().copied().filter(|&u| m.edge_faces(v, u).len() == 1).collect()
+            neighbours[v as usize]
+                .iter()
+                .copied()
+                .filter(|&u| m.edge_faces(v, u).len() == 1)
+                .collect()
         })
         .collect();
     let mut pos = m.pos.clone();
@@ -366,19 +427,25 @@ pub fn relax(mesh: &HalfMesh, field: Field, region: Option<Field>, iterations: u
                 let p = pos[v];
                 let seam = p.x == 0.0;
                 if kinds[v].1 {
-                    let (Some(region), false, [a, b]) = (region, seam, boundary_ring[v].as_slice()) else {
+                    let (Some(region), false, [a, b]) = (region, seam, boundary_ring[v].as_slice())
+                    else {
                         return p;
                     };
                     let mut q = p + ((pos[*a as usize] + pos[*b as usize]) * 0.5 - p) * 0.5;
                     for _ in 0..2 {
                         q = project(region, project(field, q, false), false);
                     }
-                    return if q.x > 0.0 && (q - p).norm() < 0.02 { q } else { p };
+                    return if q.x > 0.0 && (q - p).norm() < 0.02 {
+                        q
+                    } else {
+                        p
+                    };
                 }
                 if neighbours[v].is_empty() {
                     return p;
                 }
-                let c = neighbours[v].iter().map(|&u| pos[u as usize]).sum::<Vec3>() / neighbours[v].len() as f32;
+                let c = neighbours[v].iter().map(|&u| pos[u as usize]).sum::<Vec3>()
+                    / neighbours[v].len() as f32;
                 let mut g = gradient(field, &p);
                 if seam {
                     g.x = 0.0;
@@ -417,5 +484,8 @@ pub fn relax(mesh: &HalfMesh, field: Field, region: Option<Field>, iterations: u
             }
         }
     }
-    HalfMesh { positions: pos, faces: m.faces }
+    HalfMesh {
+        positions: pos,
+        faces: m.faces,
+    }
 }

@@ -42,7 +42,11 @@ fn extract(spec: &SurfaceSpec, h: f32) -> HalfMesh {
 /// Builds the surface described by `spec`. Errors are plain messages about what failed.
 pub fn build(spec: &SurfaceSpec) -> Result<TriMesh, String> {
     let target = spec.target_vertices.max(50);
-    let spacing = |area: f32, density: f32| (density * area / (3.0 * target as f32)).sqrt().clamp(H_MIN_M, H_MAX_M);
+    let spacing = |area: f32, density: f32| {
+        (density * area / (3.0 * target as f32))
+            .sqrt()
+            .clamp(H_MIN_M, H_MAX_M)
+    };
     let mut h = spacing(spec.area_estimate_m2.max(1e-3), MT_DENSITY);
     let mut half = extract(spec, h);
     let full_count = |m: &HalfMesh| 2 * m.positions.len();

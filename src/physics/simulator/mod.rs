@@ -7,19 +7,25 @@
 //!
 //! Without `dynamics` every step is a static solve (`min E`), the PBNS-like formulation.
 
+mod residual;
+mod sequence;
+
 use std::sync::Arc;
 
 use burn::tensor::{DType, Device, Tensor, TensorData};
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::Vec3;
-use crate::scene::{Avatar, Garment, Motion};
 
-use super::collision::{BodyBatch, Contacts, PosedBody};
-use super::lbfgs::{self, LbfgsOptions};
-use super::rest::GarmentRest;
-use super::tensors::{positions_tensor, read_f64};
-use super::{Effects, FabricParams, PhysicsError, PhysicsTerms};
+pub use residual::FrameResidual;
+pub use sequence::{SimProgress, Simulation, simulate};
+
+use crate::physics::collision::{BodyBatch, Contacts, PosedBody};
+use crate::physics::lbfgs::{self, InitialMetric, LbfgsOptions};
+use crate::physics::rest::GarmentRest;
+use crate::physics::sparse::EnvelopeCholesky;
+use crate::physics::tensors::{positions_tensor, read_f64};
+use crate::physics::{Effects, FabricParams, PhysicsError, PhysicsTerms};
 
 /// Simulator settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -68,10 +74,13 @@ impl SimOptions {
         if !(1..=64).contains(&self.substeps) {
             return bad("substeps must be in 1..=64");
         }
-        if !(1..=10_000).contains(&self.contact_refresh_every) || !(1..=64).contains(&self.lbfgs_memory) {
+        if !(1..=10_000).contains(&self.contact_refresh_every)
+            || !(1..=64).contains(&self.lbfgs_memory)
+        {
             return bad("contact_refresh_every must be in 1..=10000 and lbfgs_memory in 1..=64");
         }
-        if !(0.0..=1.0).contains(&self.tolerance) || !(0.01..=100.0).contains(&self.max_step_edges) {
+        if !(0.0..=1.0).contains(&self.tolerance) || !(0.01..=100.0).contains(&self.max_step_edges)
+        {
             return bad("tolerance must be in [0, 1] and max_step_edges in [0.01, 100]");
         }
         if !(0.0..=60.0).contains(&self.settle_secs) {
@@ -112,7 +121,14 @@ pub struct StepInput {
 #[derive(Debug)]
 pub struct Stepper {
     terms: PhysicsTerms,
-    precond: Vec<f64>,
+    /// Factor of `M/Δt² + K + pins` (no contacts).
+    metric: Arc<EnvelopeCholesky>,
+    /// Its triplets, to add contact stiffness for the vertices near the body.
+    base_triplets: Vec<(usize, usize, f64)>,
+    /// `2 k_c`, the Hessian of the collision penalty along the normal (0 without collision).
+    contact_k: f64,
+    /// Vertices closer than this to the body get `contact_k` in the metric, metres.
+    contact_range_m: f64,
     x_t1: Vec<f64>,
     x_t2: Vec<f64>,
     dt_secs: f32,
@@ -136,9 +152,13 @@ impl Stepper {
     ) -> Result<Self, PhysicsError> {
         options.validate()?;
         if !(dt_secs.is_finite() && dt_secs > 0.0 && dt_secs <= 1.0) {
-            return Err(PhysicsError::InvalidOptions(format!("time step {dt_secs} s is not in (0, 1]")));
+            return Err(PhysicsError::InvalidOptions(format!(
+                "time step {dt_secs} s is not in (0, 1]"
+            )));
         }
-        if initial.len() != rest.vertex_count() || initial.iter().any(|p| !p.iter().all(|v| v.is_finite())) {
+        if initial.len() != rest.vertex_count()
+            || initial.iter().any(|p| !p.iter().all(|v| v.is_finite()))
+        {
             return Err(PhysicsError::InvalidGarment(format!(
                 "initial state has {} (finite?) positions for {} vertices",
                 initial.len(),
@@ -149,25 +169,49 @@ impl Stepper {
         let f64_ok = device.supports_dtype(DType::F64);
         let dtype = if f64_ok { DType::F64 } else { DType::F32 };
         let dt2 = f64::from(dt_secs).powi(2);
-        let stiff = rest.stiffness_diagonal(fabric, effects.bending);
-        let collide_k = if effects.collision { 2.0 * f64::from(fabric.collision_stiffness) } else { 0.0 };
-        let pin_k = if effects.pinning { 2.0 * f64::from(fabric.pinning_stiffness) } else { 0.0 };
         let mean_mass = rest.total_mass_kg / rest.vertex_count().max(1) as f64;
+        // Initial L-BFGS metric: (M/Δt² + K + pins)⁻¹ with K the rest membrane stiffness.
+        let mut triplets = rest.membrane_stiffness_triplets(fabric);
+        let k_scale = triplets
+            .iter()
+            .filter(|(i, j, _)| i == j)
+            .map(|t| t.2)
+            .sum::<f64>()
+            / rest.vertex_count().max(1) as f64;
+        let regulariser = 1e-6 * k_scale + 1e-3 * mean_mass / dt2 + 1e-12;
+        let pin_k = if effects.pinning {
+            2.0 * f64::from(fabric.pinning_stiffness)
+        } else {
+            0.0
+        };
         let mut pinned = vec![false; rest.vertex_count()];
         rest.pinned.iter().for_each(|&i| pinned[i as usize] = true);
-        let precond = (0..rest.vertex_count())
-            .flat_map(|v| {
-                let inertial = if effects.dynamics { rest.mass_kg[v].max(1e-3 * mean_mass) / dt2 } else { 0.0 };
-                let h = inertial + stiff[v] + collide_k + if pinned[v] { pin_k } else { 0.0 };
-                let inv = if h > 0.0 && h.is_finite() { 1.0 / h } else { dt2 / mean_mass.max(1e-12) };
-                [inv; 3]
-            })
-            .collect();
+        for (v, m) in rest.mass_kg.iter().enumerate() {
+            let inertial = if effects.dynamics { m / dt2 } else { 0.0 };
+            triplets.push((
+                v,
+                v,
+                inertial + regulariser + if pinned[v] { pin_k } else { 0.0 },
+            ));
+        }
+        let metric = Arc::new(EnvelopeCholesky::factor(rest.vertex_count(), &triplets)?);
+        let contact_k = if effects.collision {
+            2.0 * f64::from(fabric.collision_stiffness)
+        } else {
+            0.0
+        };
         let g = f64::from(fabric.gravity().norm()).max(1.0);
-        let x0: Vec<f64> = initial.iter().flat_map(|p| [f64::from(p.x), f64::from(p.y), f64::from(p.z)]).collect();
+        let x0: Vec<f64> = initial
+            .iter()
+            .flat_map(|p| [f64::from(p.x), f64::from(p.y), f64::from(p.z)])
+            .collect();
         let terms = PhysicsTerms::from_rest(rest.clone(), fabric, effects, &device, dtype)?;
         Ok(Self {
-            precond,
+            metric,
+            base_triplets: triplets,
+            contact_k,
+            contact_range_m: 2.0 * f64::from(fabric.collision_threshold_m)
+                + options.max_step_edges * rest.mean_edge_m,
             x_t1: x0.clone(),
             x_t2: x0,
             dt_secs,
@@ -199,14 +243,20 @@ impl Stepper {
         };
         let (device, dtype) = (self.terms.device().clone(), self.terms.dtype());
         let v = self.terms.rest().vertex_count();
-        let upload = |x: &[f64]| Tensor::<3>::from_data(TensorData::new(x.to_vec(), [1, v, 3]), (&device, dtype));
+        let upload = |x: &[f64]| {
+            Tensor::<3>::from_data(TensorData::new(x.to_vec(), [1, v, 3]), (&device, dtype))
+        };
         let (x_t1, x_t2) = (upload(&self.x_t1), upload(&self.x_t2));
         let pin_target = match (&input.pin_targets, self.terms.tensors().pinned.is_some()) {
             (Some(t), true) => Some(positions_tensor(&[t.as_slice()], &device, dtype)?),
             _ => None,
         };
         let mut x: Vec<f64> = if effects.dynamics {
-            self.x_t1.iter().zip(&self.x_t2).map(|(a, b)| 2.0 * a - b).collect()
+            self.x_t1
+                .iter()
+                .zip(&self.x_t2)
+                .map(|(a, b)| 2.0 * a - b)
+                .collect()
         } else {
             self.x_t1.clone()
         };
@@ -220,6 +270,7 @@ impl Stepper {
             ..Default::default()
         };
         let mut last_contacts: Option<Contacts>;
+        let mut memory = lbfgs::Memory::new();
         loop {
             let contacts = match &body {
                 Some(b) => {
@@ -228,11 +279,55 @@ impl Stepper {
                 }
                 None => None,
             };
-            let budget = (self.options.iterations_per_step - spent).min(self.options.contact_refresh_every);
-            let opts = LbfgsOptions { max_iterations: budget, ..lbfgs_opts.clone() };
-            let r = lbfgs::minimize(&mut x, &self.precond, &opts, |xs| {
-                self.objective(&upload(xs), contacts.as_ref(), &x_t1, &x_t2, pin_target.as_ref(), true)
-                    .map(|(value, _, grad)| (value, grad))
+            // The metric with the contact stiffness of the vertices near the body.
+            let near: Vec<usize> = contacts.as_ref().map_or_else(Vec::new, |c| {
+                c.distances_m
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, d)| f64::from(**d) < self.contact_range_m)
+                    .map(|(i, _)| i)
+                    .collect()
+            });
+            let metric = if near.is_empty() || self.contact_k == 0.0 {
+                self.metric.clone()
+            } else {
+                let mut t = self.base_triplets.clone();
+                t.extend(near.iter().map(|&i| (i, i, self.contact_k)));
+                Arc::new(EnvelopeCholesky::factor(v, &t)?)
+            };
+            let apply = |r: &[f64]| -> Vec<f64> {
+                let mut out = r.to_vec();
+                let mut column = vec![0.0; v];
+                for c in 0..3 {
+                    column
+                        .iter_mut()
+                        .enumerate()
+                        .for_each(|(i, x)| *x = r[3 * i + c]);
+                    metric.solve_in_place(&mut column);
+                    column
+                        .iter()
+                        .enumerate()
+                        .for_each(|(i, x)| out[3 * i + c] = *x);
+                }
+                out
+            };
+            let h0 = InitialMetric::Operator(&apply);
+            let budget =
+                (self.options.iterations_per_step - spent).min(self.options.contact_refresh_every);
+            let opts = LbfgsOptions {
+                max_iterations: budget,
+                ..lbfgs_opts.clone()
+            };
+            let r = lbfgs::minimize_with_memory(&mut x, &h0, &opts, &mut memory, |xs| {
+                self.objective(
+                    &upload(xs),
+                    contacts.as_ref(),
+                    &x_t1,
+                    &x_t2,
+                    pin_target.as_ref(),
+                    true,
+                )
+                .map(|(value, _, grad)| (value, grad))
             })?;
             spent += r.iterations;
             report.iterations += r.iterations;
@@ -240,17 +335,25 @@ impl Stepper {
             report.objective_j = r.value;
             report.residual = r.grad_inf / self.force_scale;
             last_contacts = contacts;
-            if spent >= self.options.iterations_per_step || (r.converged && r.iterations == 0) || r.iterations < budget && !r.converged {
-                break;
-            }
-            if body.is_none() && r.converged {
+            let stalled = r.iterations < budget && !r.converged;
+            if spent >= self.options.iterations_per_step
+                || (r.converged && (r.iterations == 0 || body.is_none()))
+                || stalled
+            {
                 break;
             }
         }
         if x.iter().any(|c| !c.is_finite()) {
             return Err(PhysicsError::NonFinite("simulated positions".into()));
         }
-        let (_, potential, _) = self.objective(&upload(&x), last_contacts.as_ref(), &x_t1, &x_t2, pin_target.as_ref(), false)?;
+        let (_, potential, _) = self.objective(
+            &upload(&x),
+            last_contacts.as_ref(),
+            &x_t1,
+            &x_t2,
+            pin_target.as_ref(),
+            false,
+        )?;
         report.potential_j = potential;
         let dt2 = f64::from(self.dt_secs).powi(2);
         report.kinetic_j = self
@@ -260,7 +363,9 @@ impl Stepper {
             .iter()
             .enumerate()
             .map(|(i, m)| {
-                let d2: f64 = (0..3).map(|k| (x[3 * i + k] - self.x_t1[3 * i + k]).powi(2)).sum();
+                let d2: f64 = (0..3)
+                    .map(|k| (x[3 * i + k] - self.x_t1[3 * i + k]).powi(2))
+                    .sum();
                 0.5 * m * d2 / dt2
             })
             .sum();
@@ -278,119 +383,49 @@ impl Stepper {
         pin_target: Option<&Tensor<3>>,
         grad: bool,
     ) -> Result<(f64, f64, Vec<f64>), PhysicsError> {
-        let x = if grad { x.clone().require_grad() } else { x.clone() };
-        let mut potential = self.terms.static_energies(&x, contacts)?.into_iter().map(|(_, e)| e).reduce(|a, b| a + b);
-        if let Some(target) = pin_target {
-            if let Some(p) = self.terms.pinning(&x, target) {
-                potential = Some(match potential {
-                    Some(e) => e + p,
-                    None => p,
-                });
-            }
+        let x = if grad {
+            x.clone().require_grad()
+        } else {
+            x.clone()
+        };
+        let mut potential = self
+            .terms
+            .static_energies(&x, contacts)?
+            .into_iter()
+            .map(|(_, e)| e)
+            .reduce(|a, b| a + b);
+        if let Some(p) = pin_target.and_then(|target| self.terms.pinning(&x, target)) {
+            potential = Some(match potential {
+                Some(e) => e + p,
+                None => p,
+            });
         }
         let potential = potential.unwrap_or_else(|| self.terms.tensors().zeros(1));
         let total = match self.terms.inertia(&x, x_t1, x_t2, self.dt_secs) {
             Some(inertia) => potential.clone() + inertia,
             None => potential.clone(),
         };
-        let value = read_f64(total.clone().detach())?.first().copied().unwrap_or(f64::NAN);
-        let pot = read_f64(potential.detach())?.first().copied().unwrap_or(f64::NAN);
+        let value = read_f64(total.clone().detach())?
+            .first()
+            .copied()
+            .unwrap_or(f64::NAN);
+        let pot = read_f64(potential.detach())?
+            .first()
+            .copied()
+            .unwrap_or(f64::NAN);
         if !grad {
             return Ok((value, pot, Vec::new()));
         }
         let grads = total.backward();
-        let g = x.grad(&grads).ok_or_else(|| PhysicsError::Backend("no gradient for positions".into()))?;
+        let g = x
+            .grad(&grads)
+            .ok_or_else(|| PhysicsError::Backend("no gradient for positions".into()))?;
         Ok((value, pot, read_f64(g)?))
     }
 }
 
-/// A baked sequence with its per-frame reports.
-#[derive(Clone, Debug, Default)]
-pub struct Simulation {
-    /// Garment positions per output frame.
-    pub frames: Vec<Vec<Vec3>>,
-    /// Per output frame, the report of its last step.
-    pub reports: Vec<FrameReport>,
-    /// Output frame rate.
-    pub fps: f32,
-}
-
-/// Progress of [`simulate`]: output frame `frame` of `total` is done.
-#[derive(Clone, Copy, Debug)]
-pub struct SimProgress {
-    /// Output frames done.
-    pub frame: usize,
-    /// Output frames in total.
-    pub total: usize,
-    /// Report of that frame.
-    pub report: FrameReport,
-}
-
-/// Bakes `garment` on `avatar` playing `motion` at `fps` with the reference simulator.
-/// `progress` is called after each output frame; returning `false` cancels.
-#[allow(clippy::too_many_arguments)]
-pub fn simulate(
-    avatar: &Avatar,
-    garment: &Garment,
-    fabric: &FabricParams,
-    effects: &Effects,
-    motion: &Motion,
-    fps: f32,
-    options: &SimOptions,
-    device: &Device,
-    progress: &mut dyn FnMut(&SimProgress) -> bool,
-) -> Result<Simulation, PhysicsError> {
-    options.validate()?;
-    fabric.validate()?;
-    if !(fps.is_finite() && (1.0..=1000.0).contains(&fps)) {
-        return Err(PhysicsError::InvalidOptions(format!("frame rate {fps} is not in [1, 1000]")));
-    }
-    let rest = Arc::new(GarmentRest::from_garment(garment, fabric)?);
-    let steps_per_frame = options.substeps;
-    let dt = 1.0 / (fps * steps_per_frame as f32);
-    let total = (motion.duration_secs() * fps + 1e-3).floor() as usize + 1;
-    let settle_steps = (options.settle_secs / dt).round() as usize;
-    let first = motion.sample(0.0);
-    let initial = garment.pose_vertices(avatar, &first);
-    let mut stepper = Stepper::new(rest, fabric, effects, &initial, dt, options, device)?;
-    let mut cached: Option<(crate::scene::Pose, Arc<PosedBody>)> = None;
-    let mut input_at = |time: f32| -> Result<StepInput, PhysicsError> {
-        let pose = motion.sample(time);
-        let body = if effects.collision {
-            match &cached {
-                Some((p, b)) if *p == pose => Some(b.clone()),
-                _ => {
-                    let b = Arc::new(PosedBody::from_avatar(avatar, &pose)?);
-                    cached = Some((pose.clone(), b.clone()));
-                    Some(b)
-                }
-            }
-        } else {
-            None
-        };
-        let pin_targets = (effects.pinning && !garment.pinned.is_empty()).then(|| garment.pose_vertices(avatar, &pose));
-        Ok(StepInput { body, pin_targets })
-    };
-    for _ in 0..settle_steps {
-        stepper.step(&input_at(0.0)?)?;
-    }
-    let mut sim = Simulation { fps, ..Default::default() };
-    for frame in 0..total {
-        let mut last = FrameReport::default();
-        for sub in 0..steps_per_frame {
-            let time = (frame as f32 - 1.0 + (sub + 1) as f32 / steps_per_frame as f32) / fps;
-            let (_, report) = stepper.step(&input_at(time.max(0.0))?)?;
-            last = report;
-        }
-        sim.frames.push(stepper.positions());
-        sim.reports.push(last);
-        if !progress(&SimProgress { frame: frame + 1, total, report: last }) {
-            return Err(PhysicsError::Cancelled { frames: frame + 1 });
-        }
-    }
-    Ok(sim)
-}
-
 fn to_vec3(x: &[f64]) -> Vec<Vec3> {
-    x.chunks_exact(3).map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32)).collect()
+    x.chunks_exact(3)
+        .map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
+        .collect()
 }

@@ -1,0 +1,106 @@
+//! Saving and opening project files from the app state (the file format itself is in
+//! [`super::project`]).
+
+use std::path::Path;
+
+use super::project::{ProjectError, ProjectFile, SceneSources, ViewSettings};
+use super::state::{AppState, Level, SceneParts};
+
+impl AppState {
+    /// The project file describing the current setup.
+    pub fn to_project(&self) -> ProjectFile {
+        ProjectFile {
+            scene: SceneSources {
+                fabric_preset: Some(self.fabric_preset.clone()),
+                ..self.scene.sources.clone()
+            },
+            fabric: self.fabric.clone(),
+            effects: self.effects,
+            training: self.train_config.clone(),
+            run_dir: self.run_dir.clone(),
+            view: ViewSettings {
+                w: self.w,
+                draw: self.draw,
+                x_axis: self.curves.x_axis,
+                playback_speed: self.playback.speed,
+            },
+            ..Default::default()
+        }
+    }
+
+    /// Saves the setup as a project file and remembers it in the recent files.
+    pub fn save_project(&mut self, path: &Path) -> bool {
+        let result = self
+            .to_project()
+            .save(path)
+            .and_then(|()| self.recent.push(path));
+        self.project_done(path, result, "saved")
+    }
+
+    fn project_done(&mut self, path: &Path, result: Result<(), ProjectError>, verb: &str) -> bool {
+        match result {
+            Ok(()) => {
+                self.project_path = Some(path.to_path_buf());
+                self.message(Level::Info, format!("{verb} project {}", path.display()));
+                true
+            }
+            Err(e) => {
+                self.message(Level::Error, e.to_string());
+                false
+            }
+        }
+    }
+
+    /// Opens a project: loads its avatar, garment and motions (the built-in scene parts where
+    /// it names none) and applies its settings. Load errors are shown; what loads is kept.
+    pub fn open_project(
+        &mut self,
+        path: &Path,
+        default_scene: impl FnOnce() -> Option<SceneParts>,
+    ) -> bool {
+        let project = match ProjectFile::open(path) {
+            Ok(p) => p,
+            Err(e) => {
+                self.message(Level::Error, e.to_string());
+                return false;
+            }
+        };
+        self.fabric = project.fabric.clone();
+        self.fabric_preset = project
+            .scene
+            .fabric_preset
+            .clone()
+            .unwrap_or_else(|| "custom".into());
+        self.effects = project.effects;
+        self.train_config = project.training.clone();
+        self.run_dir = project.run_dir.clone();
+        self.w = project.view.w;
+        self.draw = project.view.draw;
+        self.curves.x_axis = project.view.x_axis;
+        self.playback.speed = project
+            .view
+            .playback_speed
+            .clamp(super::playback::MIN_SPEED, super::playback::MAX_SPEED);
+        if (project.scene.avatar.is_none() || project.scene.garment.is_none())
+            && let Some(parts) = default_scene()
+        {
+            self.scene.name = parts.name;
+            self.scene.avatar = parts.avatar;
+            self.scene.splits = parts.splits;
+            self.scene.garment = parts.garment;
+            self.scene.sources = SceneSources::default();
+            self.scene_changed();
+        }
+        if let Some(a) = &project.scene.avatar {
+            self.load_avatar(a);
+        }
+        if let Some(g) = &project.scene.garment {
+            self.load_garment(g);
+        }
+        for m in &project.scene.motions {
+            self.load_motion(m);
+        }
+        let result = self.recent.push(path);
+        self.project_done(path, result, "opened")
+    }
+}

@@ -1,0 +1,375 @@
+//! Markdown of a [`BenchReport`]: the tables, and the gap to each goal of the issue computed
+//! from the numbers of the same run.
+
+use std::fmt::Write as _;
+
+use crate::model::EncoderKind;
+use crate::scene::config::Effects;
+
+use super::suite::BenchReport;
+use super::{InferenceBench, MemoryBandwidth};
+
+/// Goal: garment of about 10K DoF, frame by frame on one core, frames per second.
+pub const GOAL_10K_FPS: f64 = 2000.0;
+/// Goal: 250K DoF frame time as a multiple of the streaming-read floor of the f32 basis.
+pub const GOAL_FLOOR_RATIO: f64 = 1.3;
+/// Goal: peak memory of inference as a multiple of the weights.
+pub const GOAL_PEAK_RATIO: f64 = 1.5;
+/// Paper Tab. 4 (RTX 3060), ours at 10K DoF, frames per second.
+const PAPER_10K_FPS: f64 = 853.9;
+/// Paper Tab. 4 (RTX 3060), ours at 250K DoF, frames per second.
+const PAPER_250K_FPS: f64 = 206.3;
+/// The authors' TensorFlow code on the 2-core development machine, 10K DoF, frame by frame
+/// (figure quoted in the issue, not re-measured by the suite).
+const AUTHORS_CODE_10K_FPS: f64 = 214.0;
+
+/// "all effects", or the effects that are switched off.
+pub fn effects_label(e: &Effects) -> String {
+    let off: Vec<&str> = [
+        (e.gravity, "gravity"),
+        (e.bending, "bending"),
+        (e.collision, "collision"),
+        (e.dynamics, "dynamics"),
+    ]
+    .iter()
+    .filter(|(on, _)| !on)
+    .map(|(_, name)| *name)
+    .collect();
+    if off.is_empty() {
+        "all effects".into()
+    } else {
+        format!("{} off", off.join(", "))
+    }
+}
+
+fn mb(bytes: usize) -> f64 {
+    bytes as f64 / 1e6
+}
+
+fn model_label(kind: EncoderKind) -> &'static str {
+    match kind {
+        EncoderKind::Disentangled => "full",
+        EncoderKind::Entangled => "entangled",
+        EncoderKind::StaticOnly => "static only",
+    }
+}
+
+fn floor_of<'a>(r: &'a BenchReport, bytes: usize, threads: usize) -> Option<&'a MemoryBandwidth> {
+    r.bandwidth
+        .iter()
+        .find(|m| m.threads == threads && m.bytes.abs_diff(bytes) <= 4096)
+}
+
+fn ratio(b: &InferenceBench, floor: Option<&MemoryBandwidth>) -> String {
+    floor.map_or_else(|| "—".into(), |m| format!("{:.2}×", b.ms_per_frame / m.ms_per_pass))
+}
+
+/// The rows of one configuration at the largest (or smallest) garment.
+fn find<'a>(
+    r: &'a BenchReport,
+    dof: usize,
+    precision: &str,
+    threads: usize,
+) -> Option<&'a InferenceBench> {
+    r.inference.iter().find(|b| {
+        b.dof == dof
+            && b.model == EncoderKind::Disentangled
+            && b.precision == precision
+            && b.threads == threads
+    })
+}
+
+/// The whole Markdown report.
+pub fn write_markdown(r: &BenchReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "### Inference: raw pose → garment and body meshes\n");
+    let _ = writeln!(
+        s,
+        "Walk motion at 30 fps, GRU state carried over, `w = 1`; median of the timed frames. \
+         Weights: storage precision of the basis / of the other layers (f32 = exact). Floors: \
+         a streaming read of a buffer the size of the f32 basis (the issue's floor) and of the \
+         basis as stored. Kernels: {}.\n",
+        if r.simd {
+            "AVX2 + FMA + F16C"
+        } else {
+            "portable loops (no AVX2/F16C)"
+        }
+    );
+    let _ = writeln!(
+        s,
+        "| DoF | model | weights | threads | ms / frame | fps | fps, still body | weights MB (f32) | stored MB | basis rows read | peak / weights | frame / floor (f32 basis) | frame / floor (stored basis) |"
+    );
+    let _ = writeln!(s, "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for b in &r.inference {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {:.3} | {:.0} | {:.0} | {:.1} | {:.1} | {:.0}% | {:.2}× | {} | {} |",
+            b.dof,
+            model_label(b.model),
+            b.precision,
+            b.threads,
+            b.ms_per_frame,
+            b.fps,
+            b.still_fps,
+            mb(b.weight_bytes),
+            mb(b.stored_bytes),
+            100.0 * b.basis_rows_read,
+            b.peak_over_weights(),
+            ratio(b, floor_of(r, b.basis_f32_bytes, b.threads)),
+            ratio(b, floor_of(r, b.basis_bytes, b.threads)),
+        );
+    }
+    if !r.precision.is_empty() {
+        let _ = writeln!(s, "\n### Error of the default f16 weights against f32\n");
+        let _ = writeln!(
+            s,
+            "| DoF | weights | frames | max vertex error mm | mean vertex error mm | largest offset mm | max error / largest offset |"
+        );
+        let _ = writeln!(s, "|---:|---|---:|---:|---:|---:|---:|");
+        for e in &r.precision {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {:.5} | {:.5} | {:.1} | {:.1e} |",
+                e.dof,
+                e.precision,
+                e.frames,
+                e.max_vertex_error_m * 1e3,
+                e.mean_vertex_error_m * 1e3,
+                e.max_offset_m * 1e3,
+                e.max_vertex_error_m / e.max_offset_m.max(1e-12)
+            );
+        }
+    }
+    if !r.bandwidth.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n### Memory-bandwidth floor (streaming read of buffers the size of each basis)\n"
+        );
+        let _ = writeln!(s, "| MB | threads | ms / pass | GB/s |");
+        let _ = writeln!(s, "|---:|---:|---:|---:|");
+        for m in &r.bandwidth {
+            let _ = writeln!(
+                s,
+                "| {:.1} | {} | {:.3} | {:.1} |",
+                mb(m.bytes),
+                m.threads,
+                m.ms_per_pass,
+                m.gb_per_sec
+            );
+        }
+    }
+    if !r.training.is_empty() {
+        let _ = writeln!(s, "\n### Training step (default scene, flex CPU backend)\n");
+        let _ = writeln!(s, "| batch | effects | window s | fps | ms / step | steps / s | peak MB |");
+        let _ = writeln!(s, "|---:|---|---:|---:|---:|---:|---:|");
+        for t in &r.training {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {:.1} | {:.2} | {:.0} |",
+                t.batch,
+                effects_label(&t.effects),
+                t.window_secs,
+                t.fps,
+                t.ms_per_step,
+                1e3 / t.ms_per_step,
+                mb(t.peak_bytes)
+            );
+        }
+    }
+    if let Some(p) = &r.physics {
+        let _ = writeln!(s, "\n### Physics terms at 10K DoF (forward + backward)\n");
+        s.push_str(&p.to_markdown());
+    }
+    s.push_str(&gaps(r));
+    let _ = writeln!(
+        s,
+        "\n{} cores; the suite took {:.0} s.",
+        r.cores, r.total_secs
+    );
+    s
+}
+
+/// The "gap to each goal" section.
+fn gaps(r: &BenchReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "\n### Gap to each goal\n");
+    let dofs: Vec<usize> = r.inference.iter().map(|b| b.dof).collect();
+    let (Some(&small), Some(&large)) = (dofs.iter().min(), dofs.iter().max()) else {
+        let _ = writeln!(s, "No inference was measured.");
+        return s;
+    };
+    let all = r.cores;
+
+    // Goal 1: 10K DoF on one core.
+    if let Some(b) = find(r, small, "f16/f16", 1) {
+        let exact = find(r, small, "f32/f32", 1);
+        let verdict = if b.fps >= GOAL_10K_FPS {
+            format!("**met** ({:.2}× the goal)", b.fps / GOAL_10K_FPS)
+        } else {
+            format!("**not met**: {:.0}% of the goal", 100.0 * b.fps / GOAL_10K_FPS)
+        };
+        let read_mb = mb(b.basis_bytes) * b.basis_rows_read;
+        let _ = writeln!(
+            s,
+            "- **{small} DoF, frame by frame on 1 core, goal ≥ {GOAL_10K_FPS:.0} fps:** {:.0} fps \
+             ({:.3} ms/frame) with the default f16 weights, {verdict}; exact f32 weights: {}. \
+             For scale: the paper's GPU figure is {PAPER_10K_FPS} fps (RTX 3060), {:.1}× slower; \
+             the authors' TensorFlow code on this 2-core machine reaches about \
+             {AUTHORS_CODE_10K_FPS:.0} fps (the issue's figure, not re-measured here), {:.1}× \
+             slower. The frame is bound by reading the weights from the last-level cache: \
+             {:.1} MB stored, of which the basis rows of nonzero decoder outputs ({:.0}% of them, \
+             ≈ {read_mb:.1} MB) and the GRU matrices dominate.",
+            b.fps,
+            b.ms_per_frame,
+            exact.map_or_else(
+                || "not measured".into(),
+                |e| format!("{:.0} fps", e.fps)
+            ),
+            b.fps / PAPER_10K_FPS,
+            b.fps / AUTHORS_CODE_10K_FPS,
+            mb(b.stored_bytes),
+            100.0 * b.basis_rows_read,
+        );
+    }
+
+    // Goal 2: 250K DoF against the bandwidth floor.
+    let thread_counts: Vec<usize> = if all > 1 { vec![1, all] } else { vec![1] };
+    let mut lines = Vec::new();
+    for precision in ["f32/f32", "f16/f16"] {
+        for &threads in &thread_counts {
+            let Some(b) = find(r, large, precision, threads) else {
+                continue;
+            };
+            let (Some(f32_floor), stored_floor) = (
+                floor_of(r, b.basis_f32_bytes, threads),
+                floor_of(r, b.basis_bytes, threads),
+            ) else {
+                continue;
+            };
+            let read_bytes = b.basis_bytes as f64 * b.basis_rows_read;
+            let achieved = read_bytes / (b.ms_per_frame * 1e-3) / 1e9;
+            let stored = if b.basis_bytes != b.basis_f32_bytes {
+                format!(
+                    "; against a read of the f16 basis ({:.0} MB) {}",
+                    mb(b.basis_bytes),
+                    ratio(b, stored_floor)
+                )
+            } else {
+                String::new()
+            };
+            lines.push(format!(
+                "  - {precision}, {threads} thread(s): {:.2} ms/frame ({:.1} fps) = **{}** the \
+                 f32 floor ({:.2} ms){stored}. It reads {:.0}% of the basis rows, {:.0} MB, at \
+                 {achieved:.1} GB/s (floor {:.1} GB/s).",
+                b.ms_per_frame,
+                b.fps,
+                ratio(b, Some(f32_floor)),
+                f32_floor.ms_per_pass,
+                100.0 * b.basis_rows_read,
+                read_bytes / 1e6,
+                f32_floor.gb_per_sec,
+            ));
+        }
+    }
+    if !lines.is_empty() {
+        let best = r
+            .inference
+            .iter()
+            .filter(|b| b.dof == large && b.model == EncoderKind::Disentangled)
+            .filter_map(|b| {
+                floor_of(r, b.basis_f32_bytes, b.threads).map(|m| b.ms_per_frame / m.ms_per_pass)
+            })
+            .fold(f64::INFINITY, f64::min);
+        let verdict = if best <= GOAL_FLOOR_RATIO {
+            "**met**"
+        } else {
+            "**not met**"
+        };
+        let _ = writeln!(
+            s,
+            "- **{large} DoF, frame time within {GOAL_FLOOR_RATIO}× of the memory-bandwidth \
+             floor** (a streaming read of a buffer the size of the f32 basis, measured in the \
+             same run): {verdict}, best {best:.2}×. For scale, the paper's GPU figure at 250K \
+             DoF is {PAPER_250K_FPS} fps. The engine goes under the floor because it does not \
+             read the whole basis: rows whose decoder output is zero after the ReLU are skipped \
+             (random weights of the default initialisation: about half; trained weights differ), \
+             and f16 storage halves the bytes of the rows it reads. The achieved bandwidth over \
+             the bytes actually read is the kernel's efficiency:"
+        );
+        for l in lines {
+            let _ = writeln!(s, "{l}");
+        }
+        let basis_bytes = find(r, large, "f32/f32", 1).map_or(0, |b| b.basis_f32_bytes);
+        if let (Some(a), Some(b)) = (floor_of(r, basis_bytes, 1), floor_of(r, basis_bytes, all))
+            && all > 1
+        {
+            let scaling = if b.gb_per_sec < 1.2 * a.gb_per_sec {
+                "the machine's memory bandwidth hardly grows with threads, so neither can the \
+                 250K frame rate"
+            } else {
+                "threads add bandwidth"
+            };
+            let _ = writeln!(
+                s,
+                "  - With {all} threads the floor reads at {:.1} GB/s against {:.1} GB/s on one: \
+                 {scaling}.",
+                b.gb_per_sec, a.gb_per_sec
+            );
+        }
+    }
+
+    // Goal 3: peak memory.
+    let peaks: Vec<&InferenceBench> = r
+        .inference
+        .iter()
+        .filter(|b| b.dof == large && b.model == EncoderKind::Disentangled)
+        .collect();
+    if let Some(worst) = peaks
+        .iter()
+        .max_by(|a, b| a.peak_over_weights().total_cmp(&b.peak_over_weights()))
+    {
+        let verdict = if worst.peak_over_weights() < GOAL_PEAK_RATIO {
+            "**met**"
+        } else {
+            "**not met**"
+        };
+        let list: Vec<String> = peaks
+            .iter()
+            .map(|b| {
+                format!(
+                    "{} {} thread(s) {:.2}×",
+                    b.precision,
+                    b.threads,
+                    b.peak_over_weights()
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "- **Peak memory of inference at {large} DoF under {GOAL_PEAK_RATIO}× the weights \
+             ({:.0} MB in f32):** {verdict}, worst {:.2}× ({}). Measured as the weights as \
+             loaded plus the rise of the process's peak resident memory (`VmHWM`, reset before \
+             the engine is built) over the engine build and all frames. The engine takes the \
+             weights by value, converts the f16 matrices in place (the freed half goes back to \
+             the system) and allocates only per-vertex buffers.",
+            mb(worst.weight_bytes),
+            worst.peak_over_weights(),
+            list.join(", ")
+        );
+    }
+    if let Some(e) = r.precision.iter().max_by(|a, b| {
+        a.max_vertex_error_m.total_cmp(&b.max_vertex_error_m)
+    }) {
+        let _ = writeln!(
+            s,
+            "- **f16 error:** at most {:.4} mm on any garment vertex over {} frames ({} DoF), \
+             {:.1e} of the largest offset: the default precision is f16 because this is far below \
+             0.1 mm. `InferenceOptions::exact()` keeps f32 (used by the equality test with burn).",
+            e.max_vertex_error_m * 1e3,
+            e.frames,
+            e.dof,
+            e.max_vertex_error_m / e.max_offset_m.max(1e-12)
+        );
+    }
+    s
+}

@@ -1,0 +1,62 @@
+//! `neural-cloth report`: runs the accuracy/time, settings and fidelity experiments within a
+//! time budget and writes `REPORT.md`, `report/report.json` and the SVG figures.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+
+use neural_cloth::report::{ReportOptions, run_report, write_report};
+
+/// Arguments of `report`.
+#[derive(clap::Args, Debug)]
+pub struct ReportArgs {
+    /// Wall-clock budget of the whole report in minutes (under 5 minutes: a smoke run on small garments).
+    #[arg(long, default_value_t = 30.0)]
+    pub budget_minutes: f64,
+    /// Scene file (TOML) of the accuracy and settings experiments; default: the built-in scene.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Folder receiving REPORT.md and report/ (figures and report.json).
+    #[arg(long, default_value = "docs")]
+    pub out: PathBuf,
+    /// Seed of every training run.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+/// Runs `report`.
+pub fn run(args: ReportArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(args.budget_minutes.is_finite() && args.budget_minutes > 0.0, "--budget-minutes must be positive");
+    let scene = match &args.scene {
+        Some(path) => Some(super::train::scene_from_args(Some(path), None, None, None).with_context(|| format!("loading {}", path.display()))?),
+        None => None,
+    };
+    let mut command = format!("neural-cloth report --budget-minutes {}", args.budget_minutes);
+    if let Some(path) = &args.scene {
+        command.push_str(&format!(" --scene {}", path.display()));
+    }
+    if args.out != PathBuf::from("docs") {
+        command.push_str(&format!(" --out {}", args.out.display()));
+    }
+    if args.seed != 0 {
+        command.push_str(&format!(" --seed {}", args.seed));
+    }
+    let options = ReportOptions { budget_secs: args.budget_minutes * 60.0, scene, seed: args.seed, command };
+    let started = Instant::now();
+    let mut last_line = (String::new(), -1i64);
+    let report = run_report(&options, &mut |p| {
+        let percent = (p.fraction * 100.0).floor() as i64;
+        if p.detail != last_line.0 || percent / 5 != last_line.1 / 5 {
+            eprintln!("[{:>6.0} s {:>3}%] {}: {}", started.elapsed().as_secs_f64(), percent, p.phase, p.detail);
+            last_line = (p.detail.clone(), percent);
+        }
+        true
+    })?;
+    let written = write_report(&report, &args.out)?;
+    for path in written {
+        eprintln!("wrote {}", path.display());
+    }
+    eprintln!("report took {:.1} minutes", report.elapsed_secs / 60.0);
+    Ok(())
+}
