@@ -319,3 +319,95 @@ fn cli_trains_bakes_and_refuses_a_foreign_garment() {
     assert!(!dir.path().join("x.pc2").exists());
     let _ = Arc::new(0);
 }
+
+/// Reads accessor `index` of a GLB as f32 values (tightly packed, as our exporter writes).
+fn accessor_f32(doc: &gltf::Gltf, index: usize) -> Vec<f32> {
+    let acc = doc.accessors().nth(index).unwrap();
+    let view = acc.view().unwrap();
+    let blob = doc.blob.as_ref().unwrap();
+    let start = view.offset() + acc.offset();
+    let len = acc.count() * acc.size();
+    match acc.data_type() {
+        gltf::accessor::DataType::F32 => bytemuck::cast_slice::<u8, f32>(&blob[start..start + len]).to_vec(),
+        gltf::accessor::DataType::U16 => blob[start..start + len].chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]]) as f32).collect(),
+        other => panic!("unexpected accessor type {other:?}"),
+    }
+}
+
+#[test]
+fn gltf_export_validates_and_reproduces_the_baked_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    run_to_end(Trainer::spawn(setup(&run, TrainConfig { max_steps: Some(3), ..quick_config() }, None), None).unwrap()).1.unwrap();
+    let trained = load_trained(&run).unwrap();
+    let scene = &trained.scene;
+    let motion = scene.motions[1].0.clone(); // the spin: large offsets from the dynamics
+    let engine = || InferenceEngine::from_scene(trained.weights.clone(), &scene.avatar, &scene.garment, &DescriptorConfig::default(), 30.0, InferenceOptions::default()).unwrap();
+    let glb = dir.path().join("spin.glb");
+    let pc2 = dir.path().join("spin.pc2");
+    let mut reports = Vec::new();
+    for (format, out) in [(BakeFormat::Gltf, &glb), (BakeFormat::Pc2, &pc2)] {
+        let options = BakeOptions { format, out: out.clone(), fps: 30.0, morph_targets: 8, include_body: true, ..Default::default() };
+        let mut source = ModelSource::new(engine(), 30.0);
+        reports.push(bake(&scene.avatar, &scene.garment, &motion, &mut source, &options, &mut |_, _| true).unwrap());
+    }
+    let report = reports.swap_remove(0);
+    let max_error = report.max_error_m.unwrap();
+    let baked = read_pc2(&pc2).unwrap().frames;
+
+    // 1. The Khronos validator finds no error (installed by scripts/setup.sh).
+    let validator = Path::new("scripts/gltf-validate.js");
+    let out = Command::new("node").arg(validator).arg(&glb).output().expect("node must be installed (scripts/setup.sh)");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "glTF validator: {text}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(text.contains("\"errors\": 0"), "{text}");
+
+    // 2. Our importer reads the skeleton and the animation back.
+    let loaded = neural_cloth::io::load_avatar(&glb, &neural_cloth::io::ImportOptions { fps: 30.0, ..Default::default() }).unwrap().avatar;
+    assert_eq!(loaded.skeleton.len(), scene.avatar.skeleton.len());
+    assert_eq!(loaded.motions.len(), 1);
+    assert_eq!(loaded.motions[0].frame_count(), baked.len());
+
+    // 3. Skin + morph weights at frame k reproduce baked frame k within the stated error.
+    let doc = gltf::Gltf::from_slice(&std::fs::read(&glb).unwrap()).unwrap();
+    let mesh = doc.meshes().next().unwrap();
+    let prim = mesh.primitives().next().unwrap();
+    let attr = |name: gltf::Semantic| accessor_f32(&doc, prim.get(&name).unwrap().index());
+    let base = attr(gltf::Semantic::Positions);
+    let joints = attr(gltf::Semantic::Joints(0));
+    let weights = attr(gltf::Semantic::Weights(0));
+    let targets: Vec<Vec<f32>> = prim.morph_targets().map(|t| accessor_f32(&doc, t.positions().unwrap().index())).collect();
+    assert_eq!(targets.len(), report.morph_targets.unwrap());
+    assert!(!targets.is_empty(), "the spin must need morph targets");
+    let skin = doc.skins().next().unwrap();
+    let ibm = accessor_f32(&doc, skin.inverse_bind_matrices().unwrap().index());
+    let node_of: Vec<usize> = skin.joints().map(|j| j.index()).collect();
+    let anim = doc.animations().next().unwrap();
+    let weight_channel = anim.channels().find(|c| c.target().property() == gltf::animation::Property::MorphTargetWeights).unwrap();
+    let frame_weights = accessor_f32(&doc, weight_channel.sampler().output().index());
+    // Joint names of the skin, in skin order, mapped onto the loaded skeleton.
+    let names: Vec<String> = node_of.iter().map(|&n| doc.nodes().nth(n).unwrap().name().unwrap().to_string()).collect();
+    let loaded_index: Vec<usize> = names.iter().map(|n| loaded.skeleton.index_of(n).unwrap()).collect();
+    let v = scene.garment.vertex_count();
+    let mut worst = 0.0f32;
+    for k in [0, baked.len() / 2, baked.len() - 1] {
+        let world = loaded.skeleton.world_from_joint(&loaded.motions[0].frames[k]);
+        let mats: Vec<nalgebra::Matrix4<f32>> = (0..names.len())
+            .map(|j| world[loaded_index[j]] * nalgebra::Matrix4::from_column_slice(&ibm[j * 16..j * 16 + 16]))
+            .collect();
+        for i in 0..v {
+            let mut p = nalgebra::Vector3::new(base[3 * i], base[3 * i + 1], base[3 * i + 2]);
+            for (t, target) in targets.iter().enumerate() {
+                let w = frame_weights[k * targets.len() + t];
+                p += nalgebra::Vector3::new(target[3 * i], target[3 * i + 1], target[3 * i + 2]) * w;
+            }
+            let mut m = nalgebra::Matrix4::zeros();
+            for c in 0..4 {
+                m += mats[joints[4 * i + c] as usize] * weights[4 * i + c];
+            }
+            let posed = m.transform_point(&p.into()).coords;
+            worst = worst.max((posed - baked[k][i]).norm());
+        }
+    }
+    assert!(worst <= max_error + 1e-4, "posed error {worst} m above the stated compression error {max_error} m");
+}

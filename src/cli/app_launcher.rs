@@ -28,3 +28,41 @@ impl TrainerLauncher for RealLauncher {
         Trainer::spawn(setup, Some(notify)).map_err(|e| e.to_string())
     }
 }
+
+/// Bakes and writes exports for the app's export dialog through the `bake` layer.
+pub struct RealExporter;
+
+impl neural_cloth::app::export::Exporter for RealExporter {
+    fn export(&mut self, request: neural_cloth::app::export::ExportRequest) -> Result<String, String> {
+        use neural_cloth::app::export::ExportFormat;
+        use neural_cloth::bake::{BakeFormat, BakeOptions, ModelSource, bake};
+        use neural_cloth::model::{InferenceEngine, InferenceOptions};
+        let weights = request.weights.ok_or("train a model first: there are no weights to bake with")?;
+        let motion = request.avatar.motions.get(request.motion).ok_or("no such motion")?.clone();
+        let format = match request.format {
+            ExportFormat::Glb => BakeFormat::Gltf,
+            ExportFormat::Pc2 => BakeFormat::Pc2,
+            ExportFormat::Mdd => BakeFormat::Mdd,
+            ExportFormat::ObjSequence => BakeFormat::Obj,
+        };
+        // The model runs at the rate it was trained at; the bake resamples to `request.fps`.
+        let train_fps = neural_cloth::train::TrainConfig::default().fps;
+        let engine = InferenceEngine::from_scene(
+            (*weights).clone(),
+            &request.avatar,
+            &request.garment,
+            &DescriptorConfig::default(),
+            train_fps,
+            InferenceOptions { skin_body: false, ..Default::default() },
+        )
+        .map_err(|e| e.to_string())?;
+        let mut source = ModelSource::new(engine, train_fps);
+        let options = BakeOptions { format, out: request.path, fps: request.fps, w: request.w, include_body: true, ..Default::default() };
+        let report = bake(&request.avatar, &request.garment, &motion, &mut source, &options, &mut |_, _| true).map_err(|e| e.to_string())?;
+        let mut line = format!("wrote {} frames to {}", report.frames, report.outputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "));
+        if let (Some(t), Some(e)) = (report.morph_targets, report.max_error_m) {
+            line.push_str(&format!(" ({t} morph targets, max error {:.2} mm)", e * 1e3));
+        }
+        Ok(line)
+    }
+}

@@ -55,6 +55,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         None => neural_cloth::app::run_app(neural_cloth::app::AppOptions {
             project: cli.project,
             launcher: Some(Box::new(app_launcher::RealLauncher)),
+            exporter: Some(Box::new(app_launcher::RealExporter)),
             ..Default::default()
         }),
         Some(Command::Inspect { file }) => inspect::run(&file),
