@@ -32,6 +32,8 @@ use super::run_dir::{CheckpointState, RunDir};
 
 /// Validation windows per pass.
 pub const VALIDATION_WINDOWS: usize = 32;
+/// Windows of each training batch whose metrics are logged per step.
+pub const STEP_METRIC_WINDOWS: usize = 4;
 
 /// Everything one run trains with.
 pub struct NeuralSession {
@@ -211,8 +213,17 @@ impl Session for NeuralSession {
         let grads = total.backward();
         let grads = GradientsParams::from_grads(grads, &self.model);
         self.model = self.optim.step(self.learning_rate, self.model.clone(), grads);
-        let history = History { x_t1: x_t1.detach(), x_t2: x_t2.detach(), dt_secs: self.config.dt_secs() };
-        let metrics = self.terms.metrics(&x_t.detach(), contacts.as_ref(), Some(&history)).map_err(|e| e.to_string())?;
+        // Per-step metrics on the first few windows only: they are a noisy monitor anyway, and
+        // the full batch would cost a sizeable share of the step (validation uses every window).
+        let n = b.min(STEP_METRIC_WINDOWS);
+        let head = |t: &Tensor<3>| t.clone().detach().narrow(0, 0, n);
+        let history = History { x_t1: head(&x_t1), x_t2: head(&x_t2), dt_secs: self.config.dt_secs() };
+        let contacts = contacts.map(|c| crate::physics::Contacts {
+            points: c.points.narrow(0, 0, n),
+            normals: c.normals.narrow(0, 0, n),
+            distances_m: c.distances_m[..n * self.garment.vertex_count()].to_vec(),
+        });
+        let metrics = self.terms.metrics(&head(&x_t), contacts.as_ref(), Some(&history)).map_err(|e| e.to_string())?;
         Ok(self.record(&metrics, loss))
     }
 

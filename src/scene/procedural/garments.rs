@@ -183,5 +183,26 @@ pub fn garment(
     let options = options
         .cloned()
         .unwrap_or_else(|| kind.recommended_options());
-    Garment::new(kind.name(), mesh, avatar, &options)
+    let mut garment = Garment::new(kind.name(), mesh, avatar, &options)?;
+    if kind == GarmentKind::Skirt {
+        garment.pinned = waistband(&garment.mesh, WAISTBAND_M);
+    }
+    Ok(garment)
+}
+
+/// Height of the skirt's pinned waistband below its top edge, metres.
+pub const WAISTBAND_M: f32 = 0.015;
+
+/// Vertices within `band_m` of the mesh's highest point: the waistband that holds a skirt up
+/// and turns it with the hips (contact alone has no friction). Used when pinning is enabled.
+pub fn waistband(mesh: &TriMesh, band_m: f32) -> Vec<u32> {
+    let Some((_, hi)) = mesh.bounds() else {
+        return Vec::new();
+    };
+    mesh.positions
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.y >= hi.y - band_m)
+        .map(|(i, _)| i as u32)
+        .collect()
 }
