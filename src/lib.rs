@@ -4,14 +4,14 @@
 //! Layers, each depending only on those above it in this list: [`geometry`], [`scene`],
 //! [`io`], `physics`, `model`, `train`, `render`, `app`.
 
-pub mod geometry;
-pub mod scene;
-pub mod io;
-pub mod physics;
-pub mod model;
-pub mod train;
+pub mod app;
 pub mod bake;
 pub mod bench;
-pub mod report;
+pub mod geometry;
+pub mod io;
+pub mod model;
+pub mod physics;
 pub mod render;
-pub mod app;
+pub mod report;
+pub mod scene;
+pub mod train;

@@ -16,9 +16,8 @@ use burn::tensor::{DType, Device};
 use common::*;
 use neural_cloth::geometry::{TriMesh, Vec3};
 use neural_cloth::physics::collision::{self, BodyBatch, Contacts, PosedBody};
-use neural_cloth::physics::metrics::History;
 use neural_cloth::physics::shapes::{sheet, tube, uv_sphere};
-use neural_cloth::physics::{ClothModel, Effects, FabricParams, PhysicsError, Term, energies};
+use neural_cloth::physics::{ClothModel, Effects, FabricParams, Term, energies};
 
 type Energy<'a> = dyn Fn(&burn::tensor::Tensor<3>) -> burn::tensor::Tensor<1> + 'a;
 

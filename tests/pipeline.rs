@@ -16,7 +16,9 @@ use neural_cloth::scene::procedural::build_builtin;
 use neural_cloth::train::handle::{LoopConfig, Session};
 use neural_cloth::train::losses::inertia_through_past;
 use neural_cloth::train::metrics::{MetricHistory, MetricRecord};
-use neural_cloth::train::{RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer, TrainerHandle, load_trained, prepare};
+use neural_cloth::train::{
+    RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer, TrainerHandle, load_trained, prepare,
+};
 
 const TINY: &str = r#"
 name = "tiny"
@@ -71,10 +73,21 @@ fn setup(dir: &Path, train: TrainConfig, location: Option<RunLocation>) -> Train
 }
 
 fn quick_config() -> TrainConfig {
-    TrainConfig { batch_size: 4, window_secs: 0.2, seed: 7, learning_rate: 1e-3, ..Default::default() }
+    TrainConfig {
+        batch_size: 4,
+        window_secs: 0.2,
+        seed: 7,
+        learning_rate: 1e-3,
+        ..Default::default()
+    }
 }
 
-fn run_to_end(handle: TrainerHandle) -> (Vec<TrainEvent>, Result<neural_cloth::train::RunSummary, String>) {
+fn run_to_end(
+    handle: TrainerHandle,
+) -> (
+    Vec<TrainEvent>,
+    Result<neural_cloth::train::RunSummary, String>,
+) {
     let mut events = Vec::new();
     loop {
         match handle.recv_timeout(Duration::from_secs(120)) {
@@ -102,14 +115,23 @@ fn training_lowers_the_loss_and_collisions() {
     let after = session.validate().unwrap();
     eprintln!("after {after:?}");
     assert!(after.is_finite(), "{after:?}");
-    assert!(after.loss < before.loss, "loss {} -> {}", before.loss, after.loss);
     assert!(
-        after.collision_pct < before.collision_pct || (before.collision_pct == 0.0 && after.collision_pct == 0.0),
+        after.loss < before.loss,
+        "loss {} -> {}",
+        before.loss,
+        after.loss
+    );
+    assert!(
+        after.collision_pct < before.collision_pct
+            || (before.collision_pct == 0.0 && after.collision_pct == 0.0),
         "collision {}% -> {}%",
         before.collision_pct,
         after.collision_pct
     );
-    assert!(before.collision_pct > 0.0, "the random initial model should put some vertices inside the body");
+    assert!(
+        before.collision_pct > 0.0,
+        "the random initial model should put some vertices inside the body"
+    );
 }
 
 #[test]
@@ -119,9 +141,19 @@ fn inertia_gradient_reaches_only_the_current_frame_unless_snug() {
     let fabric = FabricParams::from_table(&scene.fabric).unwrap();
     let terms = PhysicsTerms::new(&scene.garment, &fabric, &scene.effects, &device).unwrap();
     let v = scene.garment.vertex_count();
-    let base: Vec<f32> = scene.garment.mesh.positions.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
+    let base: Vec<f32> = scene
+        .garment
+        .mesh
+        .positions
+        .iter()
+        .flat_map(|p| [p.x, p.y, p.z])
+        .collect();
     let make = |shift: f32| {
-        let data: Vec<f32> = base.iter().enumerate().map(|(i, x)| x + shift * ((i % 7) as f32 - 3.0) * 1e-3).collect();
+        let data: Vec<f32> = base
+            .iter()
+            .enumerate()
+            .map(|(i, x)| x + shift * ((i % 7) as f32 - 3.0) * 1e-3)
+            .collect();
         Tensor::<3>::from_data(TensorData::new(data, [1, v, 3]), &device).require_grad()
     };
     for snug in [false, true] {
@@ -132,12 +164,23 @@ fn inertia_gradient_reaches_only_the_current_frame_unless_snug() {
             terms.inertia(&x_t, &x_t1, &x_t2, 1.0 / 30.0).unwrap()
         };
         let grads = loss.backward();
-        let norm = |t: &Tensor<3>| t.grad(&grads).map(|g| g.abs().sum().into_scalar::<f32>()).unwrap_or(0.0);
+        let norm = |t: &Tensor<3>| {
+            t.grad(&grads)
+                .map(|g| g.abs().sum().into_scalar::<f32>())
+                .unwrap_or(0.0)
+        };
         assert!(norm(&x_t) > 0.0);
         if snug {
-            assert!(norm(&x_t1) > 0.0 && norm(&x_t2) > 0.0, "snug mode must reach the past frames");
+            assert!(
+                norm(&x_t1) > 0.0 && norm(&x_t2) > 0.0,
+                "snug mode must reach the past frames"
+            );
         } else {
-            assert_eq!((norm(&x_t1), norm(&x_t2)), (0.0, 0.0), "ours must stop the gradient at the past frames");
+            assert_eq!(
+                (norm(&x_t1), norm(&x_t2)),
+                (0.0, 0.0),
+                "ours must stop the gradient at the past frames"
+            );
         }
     }
 }
@@ -146,8 +189,15 @@ fn inertia_gradient_reaches_only_the_current_frame_unless_snug() {
 fn checkpoints_reload_identically_and_resume_continues() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    let config = TrainConfig { max_steps: Some(6), checkpoint_every: 3, validate_every: 3, snapshot_every: 2, ..quick_config() };
-    let (events, result) = run_to_end(Trainer::spawn(setup(&run, config.clone(), None), None).unwrap());
+    let config = TrainConfig {
+        max_steps: Some(6),
+        checkpoint_every: 3,
+        validate_every: 3,
+        snapshot_every: 2,
+        ..quick_config()
+    };
+    let (events, result) =
+        run_to_end(Trainer::spawn(setup(&run, config.clone(), None), None).unwrap());
     let summary = result.unwrap();
     assert_eq!(summary.steps, 6);
     let snapshot = events
@@ -158,26 +208,54 @@ fn checkpoints_reload_identically_and_resume_continues() {
             _ => None,
         })
         .expect("a final snapshot");
-    assert!(events.iter().any(|e| matches!(e, TrainEvent::Checkpoint { step: 3, .. })));
+    assert!(
+        events
+            .iter()
+            .any(|e| matches!(e, TrainEvent::Checkpoint { step: 3, .. }))
+    );
 
     // The checkpoint reloads to exactly the weights the trainer had.
     let trained = load_trained(&run).unwrap();
     assert_eq!(trained.step, 6);
     assert_eq!(trained.weights, *snapshot);
     let predict = |weights: neural_cloth::model::InferenceWeights| {
-        let mut engine = InferenceEngine::from_scene(weights, &trained.scene.avatar, &trained.scene.garment, &DescriptorConfig::default(), 30.0, InferenceOptions::default()).unwrap();
+        let mut engine = InferenceEngine::from_scene(
+            weights,
+            &trained.scene.avatar,
+            &trained.scene.garment,
+            &DescriptorConfig::default(),
+            30.0,
+            InferenceOptions::default(),
+        )
+        .unwrap();
         let motion = &trained.scene.motions[0].0;
         for pose in motion.frames.iter().take(10) {
             engine.step(pose, 1.0).unwrap();
         }
         engine.garment_positions().to_vec()
     };
-    assert_eq!(predict(trained.weights.clone()), predict((*snapshot).clone()));
+    assert_eq!(
+        predict(trained.weights.clone()),
+        predict((*snapshot).clone())
+    );
 
     // Resume: the step count and the metric history continue.
-    let resumed = TrainConfig { max_steps: Some(9), ..config };
-    let (events, result) = run_to_end(Trainer::spawn(setup(&run, resumed, Some(RunLocation::Resume(run.clone()))), None).unwrap());
-    assert!(matches!(events.first(), Some(TrainEvent::Started { step: 6, .. })), "{:?}", events.first());
+    let resumed = TrainConfig {
+        max_steps: Some(9),
+        ..config
+    };
+    let (events, result) = run_to_end(
+        Trainer::spawn(
+            setup(&run, resumed, Some(RunLocation::Resume(run.clone()))),
+            None,
+        )
+        .unwrap(),
+    );
+    assert!(
+        matches!(events.first(), Some(TrainEvent::Started { step: 6, .. })),
+        "{:?}",
+        events.first()
+    );
     assert_eq!(result.unwrap().steps, 9);
     let history = neural_cloth::train::RunDir::open(&run).unwrap().history();
     let steps: Vec<u64> = history.train.iter().map(|r| r.step).collect();
@@ -232,12 +310,26 @@ impl<S: Session> Session for Poisoned<S> {
 #[test]
 fn a_non_finite_loss_rolls_back_and_lowers_the_learning_rate() {
     let dir = tempfile::tempdir().unwrap();
-    let config = TrainConfig { max_steps: Some(8), checkpoint_every: 4, validate_every: 100, ..quick_config() };
+    let config = TrainConfig {
+        max_steps: Some(8),
+        checkpoint_every: 4,
+        validate_every: 100,
+        ..quick_config()
+    };
     let (session, loop_config): (_, LoopConfig) = prepare(setup(dir.path(), config, None)).unwrap();
-    let poisoned = Poisoned { inner: session, calls: 0, poison_at: 6 };
-    let (events, result) = run_to_end(TrainerHandle::spawn_session(poisoned, loop_config, None).unwrap());
+    let poisoned = Poisoned {
+        inner: session,
+        calls: 0,
+        poison_at: 6,
+    };
+    let (events, result) =
+        run_to_end(TrainerHandle::spawn_session(poisoned, loop_config, None).unwrap());
     let rollback = events.iter().find_map(|e| match e {
-        TrainEvent::RolledBack { diverged_at, restored_step, learning_rate } => Some((*diverged_at, *restored_step, *learning_rate)),
+        TrainEvent::RolledBack {
+            diverged_at,
+            restored_step,
+            learning_rate,
+        } => Some((*diverged_at, *restored_step, *learning_rate)),
         _ => None,
     });
     let (diverged_at, restored, lr) = rollback.expect("a rollback event");
@@ -251,12 +343,27 @@ fn a_non_finite_loss_rolls_back_and_lowers_the_learning_rate() {
 fn baked_caches_round_trip_and_bad_requests_leave_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    let config = TrainConfig { max_steps: Some(2), ..quick_config() };
-    run_to_end(Trainer::spawn(setup(&run, config, None), None).unwrap()).1.unwrap();
+    let config = TrainConfig {
+        max_steps: Some(2),
+        ..quick_config()
+    };
+    run_to_end(Trainer::spawn(setup(&run, config, None), None).unwrap())
+        .1
+        .unwrap();
     let trained = load_trained(&run).unwrap();
     let scene = &trained.scene;
     let motion = scene.motions[0].0.clone();
-    let engine = || InferenceEngine::from_scene(trained.weights.clone(), &scene.avatar, &scene.garment, &DescriptorConfig::default(), 30.0, InferenceOptions::default()).unwrap();
+    let engine = || {
+        InferenceEngine::from_scene(
+            trained.weights.clone(),
+            &scene.avatar,
+            &scene.garment,
+            &DescriptorConfig::default(),
+            30.0,
+            InferenceOptions::default(),
+        )
+        .unwrap()
+    };
     // Reference frames straight from the engine at the training rate.
     let mut reference = engine();
     let expected: Vec<Vec<_>> = motion
@@ -269,9 +376,22 @@ fn baked_caches_round_trip_and_bad_requests_leave_nothing() {
         .collect();
     for format in [BakeFormat::Pc2, BakeFormat::Mdd] {
         let out = dir.path().join(format!("walk.{}", format.extension()));
-        let options = BakeOptions { format, out: out.clone(), fps: 30.0, ..Default::default() };
+        let options = BakeOptions {
+            format,
+            out: out.clone(),
+            fps: 30.0,
+            ..Default::default()
+        };
         let mut source = ModelSource::new(engine(), 30.0);
-        let report = bake(&scene.avatar, &scene.garment, &motion, &mut source, &options, &mut |_, _| true).unwrap();
+        let report = bake(
+            &scene.avatar,
+            &scene.garment,
+            &motion,
+            &mut source,
+            &options,
+            &mut |_, _| true,
+        )
+        .unwrap();
         assert_eq!(report.frames, expected.len());
         let frames = match format {
             BakeFormat::Pc2 => read_pc2(&out).unwrap().frames,
@@ -282,39 +402,107 @@ fn baked_caches_round_trip_and_bad_requests_leave_nothing() {
     // w outside [0, 2], a missing folder and a cancelled bake leave no file behind.
     let before = std::fs::read_dir(dir.path()).unwrap().count();
     for options in [
-        BakeOptions { w: 2.5, out: dir.path().join("bad.pc2"), ..Default::default() },
-        BakeOptions { out: dir.path().join("missing/bad.pc2"), ..Default::default() },
+        BakeOptions {
+            w: 2.5,
+            out: dir.path().join("bad.pc2"),
+            ..Default::default()
+        },
+        BakeOptions {
+            out: dir.path().join("missing/bad.pc2"),
+            ..Default::default()
+        },
     ] {
         let mut source = ModelSource::new(engine(), 30.0);
-        assert!(bake(&scene.avatar, &scene.garment, &motion, &mut source, &options, &mut |_, _| true).is_err());
+        assert!(
+            bake(
+                &scene.avatar,
+                &scene.garment,
+                &motion,
+                &mut source,
+                &options,
+                &mut |_, _| true
+            )
+            .is_err()
+        );
     }
     let mut source = ModelSource::new(engine(), 30.0);
-    let cancelled = bake(&scene.avatar, &scene.garment, &motion, &mut source, &BakeOptions { out: dir.path().join("c.pc2"), ..Default::default() }, &mut |done, _| done < 5);
+    let cancelled = bake(
+        &scene.avatar,
+        &scene.garment,
+        &motion,
+        &mut source,
+        &BakeOptions {
+            out: dir.path().join("c.pc2"),
+            ..Default::default()
+        },
+        &mut |done, _| done < 5,
+    );
     assert!(cancelled.is_err());
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), before);
 }
 
 fn cli(args: &[&str], cwd: &Path) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_neural-cloth")).args(args).current_dir(cwd).output().unwrap();
-    (out.status.success(), format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr)))
+    let out = Command::new(env!("CARGO_BIN_EXE_neural-cloth"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        ),
+    )
 }
 
 #[test]
 fn cli_trains_bakes_and_refuses_a_foreign_garment() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("tiny.toml"), TINY).unwrap();
-    let (ok, log) = cli(&["train", "--scene", "tiny.toml", "--steps", "2", "--batch", "2", "--out", "run"], dir.path());
+    let (ok, log) = cli(
+        &[
+            "train",
+            "--scene",
+            "tiny.toml",
+            "--steps",
+            "2",
+            "--batch",
+            "2",
+            "--out",
+            "run",
+        ],
+        dir.path(),
+    );
     assert!(ok, "{log}");
     assert!(log.contains("\"steps\": 2"), "{log}");
-    let (ok, log) = cli(&["bake", "run", "--motion", "walk", "--format", "obj", "--out", "walk-obj"], dir.path());
+    let (ok, log) = cli(
+        &[
+            "bake", "run", "--motion", "walk", "--format", "obj", "--out", "walk-obj",
+        ],
+        dir.path(),
+    );
     assert!(ok, "{log}");
-    assert_eq!(std::fs::read_dir(dir.path().join("walk-obj")).unwrap().count(), 31);
+    assert_eq!(
+        std::fs::read_dir(dir.path().join("walk-obj"))
+            .unwrap()
+            .count(),
+        31
+    );
     let (ok, log) = cli(&["bake", "run", "--motion", "nope"], dir.path());
     assert!(!ok && log.contains("unknown motion 'nope'"), "{log}");
     // Swap the garment in the run's scene: the checkpoint must be refused.
     let scene_toml = std::fs::read_to_string(dir.path().join("run/scene.toml")).unwrap();
-    std::fs::write(dir.path().join("run/scene.toml"), scene_toml.replace("resolution = 400", "resolution = 500")).unwrap();
-    let (ok, log) = cli(&["bake", "run", "--motion", "walk", "--out", "x.pc2"], dir.path());
+    std::fs::write(
+        dir.path().join("run/scene.toml"),
+        scene_toml.replace("resolution = 400", "resolution = 500"),
+    )
+    .unwrap();
+    let (ok, log) = cli(
+        &["bake", "run", "--motion", "walk", "--out", "x.pc2"],
+        dir.path(),
+    );
     assert!(!ok && log.contains("no longer matches"), "{log}");
     assert!(!dir.path().join("x.pc2").exists());
     let _ = Arc::new(0);
@@ -328,8 +516,13 @@ fn accessor_f32(doc: &gltf::Gltf, index: usize) -> Vec<f32> {
     let start = view.offset() + acc.offset();
     let len = acc.count() * acc.size();
     match acc.data_type() {
-        gltf::accessor::DataType::F32 => bytemuck::cast_slice::<u8, f32>(&blob[start..start + len]).to_vec(),
-        gltf::accessor::DataType::U16 => blob[start..start + len].chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]]) as f32).collect(),
+        gltf::accessor::DataType::F32 => {
+            bytemuck::cast_slice::<u8, f32>(&blob[start..start + len]).to_vec()
+        }
+        gltf::accessor::DataType::U16 => blob[start..start + len]
+            .chunks_exact(2)
+            .map(|c| u16::from_le_bytes([c[0], c[1]]) as f32)
+            .collect(),
         other => panic!("unexpected accessor type {other:?}"),
     }
 }
@@ -338,18 +531,60 @@ fn accessor_f32(doc: &gltf::Gltf, index: usize) -> Vec<f32> {
 fn gltf_export_validates_and_reproduces_the_baked_frames() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    run_to_end(Trainer::spawn(setup(&run, TrainConfig { max_steps: Some(3), ..quick_config() }, None), None).unwrap()).1.unwrap();
+    run_to_end(
+        Trainer::spawn(
+            setup(
+                &run,
+                TrainConfig {
+                    max_steps: Some(3),
+                    ..quick_config()
+                },
+                None,
+            ),
+            None,
+        )
+        .unwrap(),
+    )
+    .1
+    .unwrap();
     let trained = load_trained(&run).unwrap();
     let scene = &trained.scene;
     let motion = scene.motions[1].0.clone(); // the spin: large offsets from the dynamics
-    let engine = || InferenceEngine::from_scene(trained.weights.clone(), &scene.avatar, &scene.garment, &DescriptorConfig::default(), 30.0, InferenceOptions::default()).unwrap();
+    let engine = || {
+        InferenceEngine::from_scene(
+            trained.weights.clone(),
+            &scene.avatar,
+            &scene.garment,
+            &DescriptorConfig::default(),
+            30.0,
+            InferenceOptions::default(),
+        )
+        .unwrap()
+    };
     let glb = dir.path().join("spin.glb");
     let pc2 = dir.path().join("spin.pc2");
     let mut reports = Vec::new();
     for (format, out) in [(BakeFormat::Gltf, &glb), (BakeFormat::Pc2, &pc2)] {
-        let options = BakeOptions { format, out: out.clone(), fps: 30.0, morph_targets: 8, include_body: true, ..Default::default() };
+        let options = BakeOptions {
+            format,
+            out: out.clone(),
+            fps: 30.0,
+            morph_targets: 8,
+            include_body: true,
+            ..Default::default()
+        };
         let mut source = ModelSource::new(engine(), 30.0);
-        reports.push(bake(&scene.avatar, &scene.garment, &motion, &mut source, &options, &mut |_, _| true).unwrap());
+        reports.push(
+            bake(
+                &scene.avatar,
+                &scene.garment,
+                &motion,
+                &mut source,
+                &options,
+                &mut |_, _| true,
+            )
+            .unwrap(),
+        );
     }
     let report = reports.swap_remove(0);
     let max_error = report.max_error_m.unwrap();
@@ -357,13 +592,29 @@ fn gltf_export_validates_and_reproduces_the_baked_frames() {
 
     // 1. The Khronos validator finds no error (installed by scripts/setup.sh).
     let validator = Path::new("scripts/gltf-validate.js");
-    let out = Command::new("node").arg(validator).arg(&glb).output().expect("node must be installed (scripts/setup.sh)");
+    let out = Command::new("node")
+        .arg(validator)
+        .arg(&glb)
+        .output()
+        .expect("node must be installed (scripts/setup.sh)");
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "glTF validator: {text}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "glTF validator: {text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(text.contains("\"errors\": 0"), "{text}");
 
     // 2. Our importer reads the skeleton and the animation back.
-    let loaded = neural_cloth::io::load_avatar(&glb, &neural_cloth::io::ImportOptions { fps: 30.0, ..Default::default() }).unwrap().avatar;
+    let loaded = neural_cloth::io::load_avatar(
+        &glb,
+        &neural_cloth::io::ImportOptions {
+            fps: 30.0,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+    .avatar;
     assert_eq!(loaded.skeleton.len(), scene.avatar.skeleton.len());
     assert_eq!(loaded.motions.len(), 1);
     assert_eq!(loaded.motions[0].frame_count(), baked.len());
@@ -376,30 +627,48 @@ fn gltf_export_validates_and_reproduces_the_baked_frames() {
     let base = attr(gltf::Semantic::Positions);
     let joints = attr(gltf::Semantic::Joints(0));
     let weights = attr(gltf::Semantic::Weights(0));
-    let targets: Vec<Vec<f32>> = prim.morph_targets().map(|t| accessor_f32(&doc, t.positions().unwrap().index())).collect();
+    let targets: Vec<Vec<f32>> = prim
+        .morph_targets()
+        .map(|t| accessor_f32(&doc, t.positions().unwrap().index()))
+        .collect();
     assert_eq!(targets.len(), report.morph_targets.unwrap());
     assert!(!targets.is_empty(), "the spin must need morph targets");
     let skin = doc.skins().next().unwrap();
     let ibm = accessor_f32(&doc, skin.inverse_bind_matrices().unwrap().index());
     let node_of: Vec<usize> = skin.joints().map(|j| j.index()).collect();
     let anim = doc.animations().next().unwrap();
-    let weight_channel = anim.channels().find(|c| c.target().property() == gltf::animation::Property::MorphTargetWeights).unwrap();
+    let weight_channel = anim
+        .channels()
+        .find(|c| c.target().property() == gltf::animation::Property::MorphTargetWeights)
+        .unwrap();
     let frame_weights = accessor_f32(&doc, weight_channel.sampler().output().index());
     // Joint names of the skin, in skin order, mapped onto the loaded skeleton.
-    let names: Vec<String> = node_of.iter().map(|&n| doc.nodes().nth(n).unwrap().name().unwrap().to_string()).collect();
-    let loaded_index: Vec<usize> = names.iter().map(|n| loaded.skeleton.index_of(n).unwrap()).collect();
+    let names: Vec<String> = node_of
+        .iter()
+        .map(|&n| doc.nodes().nth(n).unwrap().name().unwrap().to_string())
+        .collect();
+    let loaded_index: Vec<usize> = names
+        .iter()
+        .map(|n| loaded.skeleton.index_of(n).unwrap())
+        .collect();
     let v = scene.garment.vertex_count();
     let mut worst = 0.0f32;
     for k in [0, baked.len() / 2, baked.len() - 1] {
-        let world = loaded.skeleton.world_from_joint(&loaded.motions[0].frames[k]);
+        let world = loaded
+            .skeleton
+            .world_from_joint(&loaded.motions[0].frames[k]);
         let mats: Vec<nalgebra::Matrix4<f32>> = (0..names.len())
-            .map(|j| world[loaded_index[j]] * nalgebra::Matrix4::from_column_slice(&ibm[j * 16..j * 16 + 16]))
+            .map(|j| {
+                world[loaded_index[j]]
+                    * nalgebra::Matrix4::from_column_slice(&ibm[j * 16..j * 16 + 16])
+            })
             .collect();
         for i in 0..v {
             let mut p = nalgebra::Vector3::new(base[3 * i], base[3 * i + 1], base[3 * i + 2]);
             for (t, target) in targets.iter().enumerate() {
                 let w = frame_weights[k * targets.len() + t];
-                p += nalgebra::Vector3::new(target[3 * i], target[3 * i + 1], target[3 * i + 2]) * w;
+                p +=
+                    nalgebra::Vector3::new(target[3 * i], target[3 * i + 1], target[3 * i + 2]) * w;
             }
             let mut m = nalgebra::Matrix4::zeros();
             for c in 0..4 {
@@ -409,5 +678,8 @@ fn gltf_export_validates_and_reproduces_the_baked_frames() {
             worst = worst.max((posed - baked[k][i]).norm());
         }
     }
-    assert!(worst <= max_error + 1e-4, "posed error {worst} m above the stated compression error {max_error} m");
+    assert!(
+        worst <= max_error + 1e-4,
+        "posed error {worst} m above the stated compression error {max_error} m"
+    );
 }

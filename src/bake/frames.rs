@@ -5,8 +5,8 @@ use std::sync::Arc;
 
 use crate::geometry::{Mat4, Vec3};
 use crate::model::InferenceEngine;
-use crate::physics::simulator::{StepInput, Stepper};
 use crate::physics::PosedBody;
+use crate::physics::simulator::{StepInput, Stepper};
 use crate::scene::{Avatar, Garment, Motion, Pose};
 
 use super::BakeError;
@@ -48,7 +48,9 @@ impl FrameSource for ModelSource {
     }
 
     fn step(&mut self, pose: &Pose, w: f32) -> Result<(), BakeError> {
-        self.engine.step(pose, w).map_err(|e| BakeError::Source(e.to_string()))
+        self.engine
+            .step(pose, w)
+            .map_err(|e| BakeError::Source(e.to_string()))
     }
 
     fn garment(&self) -> Vec<Vec3> {
@@ -56,7 +58,11 @@ impl FrameSource for ModelSource {
     }
 
     fn rest(&self) -> Vec<Vec3> {
-        self.engine.rest_positions().chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect()
+        self.engine
+            .rest_positions()
+            .chunks_exact(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect()
     }
 }
 
@@ -73,9 +79,23 @@ pub struct SimulatorSource<'a> {
 
 impl<'a> SimulatorSource<'a> {
     /// Wraps a stepper whose time step is `1 / fps`.
-    pub fn new(stepper: Stepper, avatar: &'a Avatar, garment: &'a Garment, fps: f32, collision: bool) -> Self {
+    pub fn new(
+        stepper: Stepper,
+        avatar: &'a Avatar,
+        garment: &'a Garment,
+        fps: f32,
+        collision: bool,
+    ) -> Self {
         let positions = stepper.positions();
-        Self { stepper, avatar, garment, fps, positions, pose: None, collision }
+        Self {
+            stepper,
+            avatar,
+            garment,
+            fps,
+            positions,
+            pose: None,
+            collision,
+        }
     }
 }
 
@@ -88,11 +108,18 @@ impl FrameSource for SimulatorSource<'_> {
 
     fn step(&mut self, pose: &Pose, _w: f32) -> Result<(), BakeError> {
         let body = match self.collision {
-            true => Some(Arc::new(PosedBody::from_avatar(self.avatar, pose).map_err(|e| BakeError::Source(e.to_string()))?)),
+            true => Some(Arc::new(
+                PosedBody::from_avatar(self.avatar, pose)
+                    .map_err(|e| BakeError::Source(e.to_string()))?,
+            )),
             false => None,
         };
-        let pin_targets = (!self.garment.pinned.is_empty()).then(|| self.garment.pose_vertices(self.avatar, pose));
-        let (x, _) = self.stepper.step(&StepInput { body, pin_targets }).map_err(|e| BakeError::Source(e.to_string()))?;
+        let pin_targets = (!self.garment.pinned.is_empty())
+            .then(|| self.garment.pose_vertices(self.avatar, pose));
+        let (x, _) = self
+            .stepper
+            .step(&StepInput { body, pin_targets })
+            .map_err(|e| BakeError::Source(e.to_string()))?;
         self.positions = x;
         self.pose = Some(pose.clone());
         Ok(())
@@ -128,10 +155,10 @@ pub fn unskin(avatar: &Avatar, garment: &Garment, pose: &Pose, posed: &[Vec3]) -
             let mut m = Mat4::zeros();
             for k in 0..4 {
                 let w = garment.skin.weights[v][k];
-                if w != 0.0 {
-                    if let Some(j) = mats.get(garment.skin.joints[v][k] as usize) {
-                        m += j * w;
-                    }
+                if w != 0.0
+                    && let Some(j) = mats.get(garment.skin.joints[v][k] as usize)
+                {
+                    m += j * w;
                 }
             }
             m.try_inverse()
@@ -162,20 +189,42 @@ pub struct Resampler<'a> {
 
 impl<'a> Resampler<'a> {
     /// Starts at the beginning of `motion`.
-    pub fn new(motion: &'a Motion, source: &'a mut dyn FrameSource, w: f32) -> Result<Self, BakeError> {
+    pub fn new(
+        motion: &'a Motion,
+        source: &'a mut dyn FrameSource,
+        w: f32,
+    ) -> Result<Self, BakeError> {
         let fps = source.native_fps();
         if !(fps.is_finite() && fps > 0.0) {
-            return Err(BakeError::Invalid(format!("source frame rate {fps} is not positive")));
+            return Err(BakeError::Invalid(format!(
+                "source frame rate {fps} is not positive"
+            )));
         }
         source.reset();
-        Ok(Self { motion, source, w, index: 0, previous: None, current: None })
+        Ok(Self {
+            motion,
+            source,
+            w,
+            index: 0,
+            previous: None,
+            current: None,
+        })
     }
 
     fn advance(&mut self) -> Result<(), BakeError> {
-        let next_index = if self.current.is_some() { self.index + 1 } else { 0 };
-        let pose = self.motion.sample(next_index as f32 / self.source.native_fps());
+        let next_index = if self.current.is_some() {
+            self.index + 1
+        } else {
+            0
+        };
+        let pose = self
+            .motion
+            .sample(next_index as f32 / self.source.native_fps());
         self.source.step(&pose, self.w)?;
-        let frame = Frame { garment: self.source.garment(), rest: self.source.rest() };
+        let frame = Frame {
+            garment: self.source.garment(),
+            rest: self.source.rest(),
+        };
         self.previous = self.current.replace(frame);
         self.index = next_index;
         Ok(())
@@ -193,10 +242,23 @@ impl<'a> Resampler<'a> {
         let t = (self.index as f32 - x).clamp(0.0, 1.0);
         match prev {
             Some(p) if t > 1e-4 => Ok(Frame {
-                garment: cur.garment.iter().zip(&p.garment).map(|(c, q)| c.lerp(q, t)).collect(),
-                rest: cur.rest.iter().zip(&p.rest).map(|(c, q)| c.lerp(q, t)).collect(),
+                garment: cur
+                    .garment
+                    .iter()
+                    .zip(&p.garment)
+                    .map(|(c, q)| c.lerp(q, t))
+                    .collect(),
+                rest: cur
+                    .rest
+                    .iter()
+                    .zip(&p.rest)
+                    .map(|(c, q)| c.lerp(q, t))
+                    .collect(),
             }),
-            _ => Ok(Frame { garment: cur.garment.clone(), rest: cur.rest.clone() }),
+            _ => Ok(Frame {
+                garment: cur.garment.clone(),
+                rest: cur.rest.clone(),
+            }),
         }
     }
 }

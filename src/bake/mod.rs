@@ -16,7 +16,10 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::geometry::Vec3;
-use crate::io::export::{BakedSequence, ExportError, GltfExportOptions, MddWriter, ObjSequenceWriter, Pc2Writer, write_glb};
+use crate::io::export::{
+    BakedSequence, ExportError, GltfExportOptions, MddWriter, ObjSequenceWriter, Pc2Writer,
+    write_glb,
+};
 use crate::scene::{Avatar, Garment, Motion, Pose};
 
 /// Output formats.
@@ -35,7 +38,12 @@ pub enum BakeFormat {
 
 impl BakeFormat {
     /// Every format, for menus.
-    pub const ALL: [BakeFormat; 4] = [BakeFormat::Pc2, BakeFormat::Mdd, BakeFormat::Obj, BakeFormat::Gltf];
+    pub const ALL: [BakeFormat; 4] = [
+        BakeFormat::Pc2,
+        BakeFormat::Mdd,
+        BakeFormat::Obj,
+        BakeFormat::Gltf,
+    ];
 
     /// The usual file extension (the OBJ sequence is a folder).
     pub fn extension(self) -> &'static str {
@@ -134,12 +142,18 @@ pub enum BakeError {
 /// Output frame range `[start, end)` of `motion` at `fps`.
 pub fn frame_range(motion: &Motion, options: &BakeOptions) -> Result<(usize, usize), BakeError> {
     if !(options.fps.is_finite() && options.fps > 0.0 && options.fps <= 1000.0) {
-        return Err(BakeError::Invalid(format!("frame rate {} is not in (0, 1000]", options.fps)));
+        return Err(BakeError::Invalid(format!(
+            "frame rate {} is not in (0, 1000]",
+            options.fps
+        )));
     }
     let total = (motion.duration_secs() * options.fps + 1e-3).floor() as usize + 1;
     let end = options.end_frame.unwrap_or(total).min(total);
     if options.start_frame >= end {
-        return Err(BakeError::Invalid(format!("frame range {}..{end} is empty (the motion has {total} frames at {} fps)", options.start_frame, options.fps)));
+        return Err(BakeError::Invalid(format!(
+            "frame range {}..{end} is empty (the motion has {total} frames at {} fps)",
+            options.start_frame, options.fps
+        )));
     }
     Ok((options.start_frame, end))
 }
@@ -147,21 +161,37 @@ pub fn frame_range(motion: &Motion, options: &BakeOptions) -> Result<(usize, usi
 /// Checks `w` and the output folder before any work starts.
 pub fn check_options(options: &BakeOptions) -> Result<(), BakeError> {
     if !(options.w.is_finite() && (0.0..=2.0).contains(&options.w)) {
-        return Err(BakeError::Invalid(format!("w = {} is outside [0, 2]", options.w)));
+        return Err(BakeError::Invalid(format!(
+            "w = {} is outside [0, 2]",
+            options.w
+        )));
     }
     if options.morph_targets > 64 {
-        return Err(BakeError::Invalid(format!("{} morph targets (at most 64)", options.morph_targets)));
+        return Err(BakeError::Invalid(format!(
+            "{} morph targets (at most 64)",
+            options.morph_targets
+        )));
     }
-    let parent = options.out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let parent = options
+        .out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     if !parent.is_dir() {
-        return Err(BakeError::Export(ExportError::Format { reason: "output folder does not exist".into(), path: parent.to_path_buf() }));
+        return Err(BakeError::Export(ExportError::Format {
+            reason: "output folder does not exist".into(),
+            path: parent.to_path_buf(),
+        }));
     }
     Ok(())
 }
 
 /// `out` with `tag` inserted before the extension (`shirt.pc2` → `shirt.body.pc2`).
 pub fn sibling_path(out: &Path, tag: &str) -> PathBuf {
-    let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "bake".into());
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "bake".into());
     let name = match out.extension() {
         Some(ext) => format!("{stem}.{tag}.{}", ext.to_string_lossy()),
         None => format!("{stem}.{tag}"),
@@ -176,13 +206,23 @@ enum Sink {
 }
 
 impl Sink {
-    fn create(format: BakeFormat, path: &Path, frames: usize, start: usize, fps: f32, topology: &crate::geometry::TriMesh) -> Result<Self, ExportError> {
+    fn create(
+        format: BakeFormat,
+        path: &Path,
+        frames: usize,
+        start: usize,
+        fps: f32,
+        topology: &crate::geometry::TriMesh,
+    ) -> Result<Self, ExportError> {
         let points = topology.positions.len();
         Ok(match format {
             BakeFormat::Pc2 => Sink::Pc2(Pc2Writer::create(path, points, start as f32, 1.0)?),
             BakeFormat::Mdd => Sink::Mdd(MddWriter::create(path, frames, points, fps)?),
             BakeFormat::Obj | BakeFormat::Gltf => {
-                let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "frame".into());
+                let stem = path
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_else(|| "frame".into());
                 Sink::Obj(ObjSequenceWriter::create(path, &stem, topology)?)
             }
         })
@@ -227,14 +267,28 @@ pub fn bake(
             let t = f as f32 / options.fps;
             let out = sampler.at(t)?;
             poses.push(motion.sample(t));
-            offsets.push(out.rest.iter().zip(&garment.mesh.positions).map(|(r, p)| r - p).collect());
+            offsets.push(
+                out.rest
+                    .iter()
+                    .zip(&garment.mesh.positions)
+                    .map(|(r, p)| r - p)
+                    .collect(),
+            );
             if !progress(k + 1, frames) {
                 return Err(BakeError::Cancelled);
             }
         }
         let name = motion.name.clone();
-        let seq = BakedSequence { name: &name, fps: options.fps, poses: &poses, rest_offsets: &offsets };
-        let gltf = GltfExportOptions { max_morph_targets: options.morph_targets, include_body: options.include_body };
+        let seq = BakedSequence {
+            name: &name,
+            fps: options.fps,
+            poses: &poses,
+            rest_offsets: &offsets,
+        };
+        let gltf = GltfExportOptions {
+            max_morph_targets: options.morph_targets,
+            include_body: options.include_body,
+        };
         let report = write_glb(&options.out, avatar, garment, &seq, &gltf)?;
         return Ok(BakeReport {
             outputs: vec![options.out.clone()],
@@ -244,13 +298,34 @@ pub fn bake(
             max_error_m: Some(report.max_error_m),
         });
     }
-    let mut garment_sink = Sink::create(options.format, &options.out, frames, start, options.fps, &garment.mesh)?;
+    let mut garment_sink = Sink::create(
+        options.format,
+        &options.out,
+        frames,
+        start,
+        options.fps,
+        &garment.mesh,
+    )?;
     let mut body_sink = match options.include_body {
-        true => Some(Sink::create(options.format, &sibling_path(&options.out, "body"), frames, start, options.fps, &avatar.bind_mesh)?),
+        true => Some(Sink::create(
+            options.format,
+            &sibling_path(&options.out, "body"),
+            frames,
+            start,
+            options.fps,
+            &avatar.bind_mesh,
+        )?),
         false => None,
     };
     let mut rest_sink = match options.rest_shapes {
-        true => Some(Sink::create(options.format, &sibling_path(&options.out, "rest"), frames, start, options.fps, &garment.mesh)?),
+        true => Some(Sink::create(
+            options.format,
+            &sibling_path(&options.out, "rest"),
+            frames,
+            start,
+            options.fps,
+            &garment.mesh,
+        )?),
         false => None,
     };
     for (k, f) in (start..end).enumerate() {
@@ -274,5 +349,11 @@ pub fn bake(
     if let Some(s) = rest_sink {
         outputs.push(s.finish()?);
     }
-    Ok(BakeReport { outputs, frames, vertices: v, morph_targets: None, max_error_m: None })
+    Ok(BakeReport {
+        outputs,
+        frames,
+        vertices: v,
+        morph_targets: None,
+        max_error_m: None,
+    })
 }

@@ -11,7 +11,11 @@ use neural_cloth::train::{RunLocation, TrainSetup, Trainer, TrainerHandle};
 pub struct RealLauncher;
 
 impl TrainerLauncher for RealLauncher {
-    fn launch(&mut self, request: TrainingRequest, notify: Arc<dyn Fn() + Send + Sync>) -> Result<TrainerHandle, String> {
+    fn launch(
+        &mut self,
+        request: TrainingRequest,
+        notify: Arc<dyn Fn() + Send + Sync>,
+    ) -> Result<TrainerHandle, String> {
         let scene = (*request.scene).clone();
         // The run stores its scene description so it can be evaluated and baked later; a
         // scene edited in the app that differs from it is refused at load time (fingerprint).
@@ -33,12 +37,22 @@ impl TrainerLauncher for RealLauncher {
 pub struct RealExporter;
 
 impl neural_cloth::app::export::Exporter for RealExporter {
-    fn export(&mut self, request: neural_cloth::app::export::ExportRequest) -> Result<String, String> {
+    fn export(
+        &mut self,
+        request: neural_cloth::app::export::ExportRequest,
+    ) -> Result<String, String> {
         use neural_cloth::app::export::ExportFormat;
         use neural_cloth::bake::{BakeFormat, BakeOptions, ModelSource, bake};
         use neural_cloth::model::{InferenceEngine, InferenceOptions};
-        let weights = request.weights.ok_or("train a model first: there are no weights to bake with")?;
-        let motion = request.avatar.motions.get(request.motion).ok_or("no such motion")?.clone();
+        let weights = request
+            .weights
+            .ok_or("train a model first: there are no weights to bake with")?;
+        let motion = request
+            .avatar
+            .motions
+            .get(request.motion)
+            .ok_or("no such motion")?
+            .clone();
         let format = match request.format {
             ExportFormat::Glb => BakeFormat::Gltf,
             ExportFormat::Pc2 => BakeFormat::Pc2,
@@ -53,15 +67,45 @@ impl neural_cloth::app::export::Exporter for RealExporter {
             &request.garment,
             &DescriptorConfig::default(),
             train_fps,
-            InferenceOptions { skin_body: false, ..Default::default() },
+            InferenceOptions {
+                skin_body: false,
+                ..Default::default()
+            },
         )
         .map_err(|e| e.to_string())?;
         let mut source = ModelSource::new(engine, train_fps);
-        let options = BakeOptions { format, out: request.path, fps: request.fps, w: request.w, include_body: true, ..Default::default() };
-        let report = bake(&request.avatar, &request.garment, &motion, &mut source, &options, &mut |_, _| true).map_err(|e| e.to_string())?;
-        let mut line = format!("wrote {} frames to {}", report.frames, report.outputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "));
+        let options = BakeOptions {
+            format,
+            out: request.path,
+            fps: request.fps,
+            w: request.w,
+            include_body: true,
+            ..Default::default()
+        };
+        let report = bake(
+            &request.avatar,
+            &request.garment,
+            &motion,
+            &mut source,
+            &options,
+            &mut |_, _| true,
+        )
+        .map_err(|e| e.to_string())?;
+        let mut line = format!(
+            "wrote {} frames to {}",
+            report.frames,
+            report
+                .outputs
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
         if let (Some(t), Some(e)) = (report.morph_targets, report.max_error_m) {
-            line.push_str(&format!(" ({t} morph targets, max error {:.2} mm)", e * 1e3));
+            line.push_str(&format!(
+                " ({t} morph targets, max error {:.2} mm)",
+                e * 1e3
+            ));
         }
         Ok(line)
     }

@@ -6,9 +6,11 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use neural_cloth::bake::{BakeFormat, BakeOptions, FrameSource, ModelSource, SimulatorSource, bake};
-use neural_cloth::io::scene_loader::load_motions;
+use neural_cloth::bake::{
+    BakeFormat, BakeOptions, FrameSource, ModelSource, SimulatorSource, bake,
+};
 use neural_cloth::io::Units;
+use neural_cloth::io::scene_loader::load_motions;
 use neural_cloth::model::{InferenceEngine, InferenceOptions};
 use neural_cloth::physics::simulator::{SimOptions, Stepper};
 use neural_cloth::physics::{FabricParams, GarmentRest};
@@ -99,7 +101,10 @@ pub fn find_motion(scene: &Scene, spec: &str, fps: f32) -> anyhow::Result<Motion
         return motions.drain(..).next().context("the file holds no motion");
     }
     let names: Vec<&str> = scene.motions.iter().map(|(m, _)| m.name.as_str()).collect();
-    bail!("unknown motion '{spec}' (the scene has: {}; or give a BVH/glTF file)", names.join(", "))
+    bail!(
+        "unknown motion '{spec}' (the scene has: {}; or give a BVH/glTF file)",
+        names.join(", ")
+    )
 }
 
 fn options(out: &OutputArgs, motion: &Motion, w: f32) -> BakeOptions {
@@ -120,14 +125,31 @@ fn options(out: &OutputArgs, motion: &Motion, w: f32) -> BakeOptions {
     }
 }
 
-fn run_bake(scene: &Scene, motion: &Motion, source: &mut dyn FrameSource, options: &BakeOptions) -> anyhow::Result<()> {
+fn run_bake(
+    scene: &Scene,
+    motion: &Motion,
+    source: &mut dyn FrameSource,
+    options: &BakeOptions,
+) -> anyhow::Result<()> {
     let bar = ProgressBar::new(0);
-    bar.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} frames {per_sec}").unwrap_or_else(|_| ProgressStyle::default_bar()));
-    let report = bake(&scene.avatar, &scene.garment, motion, source, options, &mut |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-        true
-    })?;
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} frames {per_sec}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let report = bake(
+        &scene.avatar,
+        &scene.garment,
+        motion,
+        source,
+        options,
+        &mut |done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+            true
+        },
+    )?;
     bar.finish_and_clear();
     println!("{}", serde_json::to_string_pretty(&report)?);
     Ok(())
@@ -146,7 +168,10 @@ pub fn run(args: BakeArgs) -> anyhow::Result<()> {
         &trained.scene.garment,
         &trained.meta.descriptors,
         fps,
-        InferenceOptions { skin_body: false, ..Default::default() },
+        InferenceOptions {
+            skin_body: false,
+            ..Default::default()
+        },
     )?;
     let mut source = ModelSource::new(engine, fps);
     run_bake(&trained.scene, &motion, &mut source, &options)
@@ -160,14 +185,32 @@ pub fn simulate(args: SimulateArgs) -> anyhow::Result<()> {
     let motion = find_motion(&scene, &args.output.motion, fps)?;
     let options = options(&args.output, &motion, 1.0);
     neural_cloth::bake::check_options(&options)?;
-    let sim = SimOptions { iterations_per_step: args.iterations, substeps: args.substeps, ..Default::default() };
+    let sim = SimOptions {
+        iterations_per_step: args.iterations,
+        substeps: args.substeps,
+        ..Default::default()
+    };
     let step_fps = fps * args.substeps.max(1) as f32;
     let rest = std::sync::Arc::new(GarmentRest::from_garment(&scene.garment, &fabric)?);
     let first = motion.sample(0.0);
     let initial = scene.garment.pose_vertices(&scene.avatar, &first);
     let device = neural_cloth::train::device_for(neural_cloth::train::BackendKind::Cpu, false);
-    let stepper = Stepper::new(rest, &fabric, &scene.effects, &initial, 1.0 / step_fps, &sim, &device)?;
-    let mut source = SimulatorSource::new(stepper, &scene.avatar, &scene.garment, step_fps, scene.effects.collision);
+    let stepper = Stepper::new(
+        rest,
+        &fabric,
+        &scene.effects,
+        &initial,
+        1.0 / step_fps,
+        &sim,
+        &device,
+    )?;
+    let mut source = SimulatorSource::new(
+        stepper,
+        &scene.avatar,
+        &scene.garment,
+        step_fps,
+        scene.effects.collision,
+    );
     // Let the garment settle on the first pose before the motion starts.
     for _ in 0..(args.settle.max(0.0) * step_fps).round() as usize {
         source.step(&first, 1.0)?;

@@ -22,11 +22,18 @@ pub struct BenchArgs {
 /// Runs `bench`.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     let options = if args.quick {
-        BenchOptions { dofs: vec![10_000], frames: 10, train_batches: vec![4], train_steps: 2, physics: false }
+        BenchOptions {
+            dofs: vec![10_000],
+            frames: 10,
+            train_batches: vec![4],
+            train_steps: 2,
+            physics: false,
+        }
     } else {
         BenchOptions::default()
     };
-    let report = run_suite(&options, &mut |line| eprintln!("{line}")).map_err(anyhow::Error::msg)?;
+    let report =
+        run_suite(&options, &mut |line| eprintln!("{line}")).map_err(anyhow::Error::msg)?;
     let markdown = report.to_markdown();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -47,14 +54,24 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
 
 /// CPU model and core count from /proc/cpuinfo (Linux), else the core count.
 pub fn machine_description() -> String {
-    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
     let model = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
-        .and_then(|t| t.lines().find_map(|l| l.strip_prefix("model name").map(|v| v.trim_start_matches([' ', '\t', ':']).to_string())))
+        .and_then(|t| {
+            t.lines().find_map(|l| {
+                l.strip_prefix("model name")
+                    .map(|v| v.trim_start_matches([' ', '\t', ':']).to_string())
+            })
+        })
         .unwrap_or_else(|| "unknown CPU".into());
     let mem = std::fs::read_to_string("/proc/meminfo")
         .ok()
-        .and_then(|t| t.lines().find_map(|l| l.strip_prefix("MemTotal:").map(|v| v.trim().to_string())))
+        .and_then(|t| {
+            t.lines()
+                .find_map(|l| l.strip_prefix("MemTotal:").map(|v| v.trim().to_string()))
+        })
         .unwrap_or_default();
     format!("{model}, {cores} cores available, {mem} memory")
 }

@@ -45,24 +45,45 @@ pub struct ScreenshotArgs {
 
 /// Runs `screenshot`.
 pub fn run(args: ScreenshotArgs) -> anyhow::Result<()> {
-    anyhow::ensure!((0.0..=2.0).contains(&args.w), "w = {} is outside [0, 2]", args.w);
-    anyhow::ensure!((16..=8192).contains(&args.width) && (16..=8192).contains(&args.height), "image size must be 16..=8192 pixels a side");
+    anyhow::ensure!(
+        (0.0..=2.0).contains(&args.w),
+        "w = {} is outside [0, 2]",
+        args.w
+    );
+    anyhow::ensure!(
+        (16..=8192).contains(&args.width) && (16..=8192).contains(&args.height),
+        "image size must be 16..=8192 pixels a side"
+    );
     let (scene, trained) = match &args.run {
         Some(run) => {
             let t = load_trained(run)?;
             (t.scene.clone(), Some(t))
         }
-        None => (super::train::scene_from_args(args.scene.as_deref(), None, None, None)?.0, None),
+        None => (
+            super::train::scene_from_args(args.scene.as_deref(), None, None, None)?.0,
+            None,
+        ),
     };
     let motion = match &args.motion {
         Some(name) => super::bake::find_motion(&scene, name, scene.training_fps)?,
-        None => scene.motions.first().map(|(m, _)| m.clone()).context("the scene has no motion")?,
+        None => scene
+            .motions
+            .first()
+            .map(|(m, _)| m.clone())
+            .context("the scene has no motion")?,
     };
     let pose = motion.sample(args.time);
     let garment_positions = match &trained {
         Some(t) => {
             let fps = t.meta.train.fps;
-            let mut engine = InferenceEngine::from_scene(t.weights.clone(), &scene.avatar, &scene.garment, &t.meta.descriptors, fps, InferenceOptions::default())?;
+            let mut engine = InferenceEngine::from_scene(
+                t.weights.clone(),
+                &scene.avatar,
+                &scene.garment,
+                &t.meta.descriptors,
+                fps,
+                InferenceOptions::default(),
+            )?;
             let frames = (args.time.max(0.0) * fps).round() as usize;
             for k in 0..=frames {
                 engine.step(&motion.sample(k as f32 / fps), args.w)?;
@@ -71,10 +92,20 @@ pub fn run(args: ScreenshotArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    let frame = SceneFrame::from_scene(&scene.avatar, &pose, Some(&scene.garment), garment_positions);
-    let options = DrawOptions { wireframe: args.wireframe, ..Default::default() };
+    let frame = SceneFrame::from_scene(
+        &scene.avatar,
+        &pose,
+        Some(&scene.garment),
+        garment_positions,
+    );
+    let options = DrawOptions {
+        wireframe: args.wireframe,
+        ..Default::default()
+    };
     let image = screenshot(&frame, None, &options, [args.width, args.height])?;
-    image.save(&args.out).with_context(|| format!("writing {}", args.out.display()))?;
+    image
+        .save(&args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
     println!("wrote {}", args.out.display());
     Ok(())
 }

@@ -66,34 +66,64 @@ pub enum Backend {
 }
 
 /// The scene and its (absolute-path) description from the arguments.
-pub fn scene_from_args(scene: Option<&Path>, avatar: Option<&Path>, garment: Option<&Path>, motions: Option<&Path>) -> anyhow::Result<(neural_cloth::scene::Scene, SceneConfig)> {
+pub fn scene_from_args(
+    scene: Option<&Path>,
+    avatar: Option<&Path>,
+    garment: Option<&Path>,
+    motions: Option<&Path>,
+) -> anyhow::Result<(neural_cloth::scene::Scene, SceneConfig)> {
     let (mut config, dir) = match scene {
         Some(path) => {
-            let config = SceneConfig::load(path).with_context(|| format!("reading {}", path.display()))?;
-            (config, path.parent().map(Path::to_path_buf).unwrap_or_default())
+            let config =
+                SceneConfig::load(path).with_context(|| format!("reading {}", path.display()))?;
+            (
+                config,
+                path.parent().map(Path::to_path_buf).unwrap_or_default(),
+            )
         }
         None => (SceneConfig::default_scene(), std::env::current_dir()?),
     };
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
     if let (Some(a), Some(g)) = (avatar, garment) {
-        config.avatar = AvatarSource::File { path: abs(a), units: None };
-        config.garment = GarmentSource::File { path: abs(g), units: None, smoothing_passes: None };
+        config.avatar = AvatarSource::File {
+            path: abs(a),
+            units: None,
+        };
+        config.garment = GarmentSource::File {
+            path: abs(g),
+            units: None,
+            smoothing_passes: None,
+        };
     }
     if let Some(dir) = motions {
         let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
             .with_context(|| format!("listing {}", dir.display()))?
             .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh") || e.eq_ignore_ascii_case("glb") || e.eq_ignore_ascii_case("gltf")))
+            .filter(|p| {
+                p.extension().is_some_and(|e| {
+                    e.eq_ignore_ascii_case("bvh")
+                        || e.eq_ignore_ascii_case("glb")
+                        || e.eq_ignore_ascii_case("gltf")
+                })
+            })
             .collect();
         files.sort();
-        anyhow::ensure!(!files.is_empty(), "no BVH or glTF motions in {}", dir.display());
+        anyhow::ensure!(
+            !files.is_empty(),
+            "no BVH or glTF motions in {}",
+            dir.display()
+        );
         config.motions = files
             .iter()
             .enumerate()
             .map(|(k, p)| MotionSource::File {
                 path: abs(p),
                 units: None,
-                split: if files.len() > 1 && k % 10 == 9 { Split::Validation } else { Split::Train },
+                split: if files.len() > 1 && k % 10 == 9 {
+                    Split::Validation
+                } else {
+                    Split::Train
+                },
                 name: None,
             })
             .collect();
@@ -123,8 +153,16 @@ pub fn scene_from_args(scene: Option<&Path>, avatar: Option<&Path>, garment: Opt
 
 /// Runs `train`.
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
-    let (scene, scene_config) = scene_from_args(args.scene.as_deref(), args.avatar.as_deref(), args.garment.as_deref(), args.motions.as_deref())?;
-    let mut train = TrainConfig { fps: scene.training_fps, ..Default::default() };
+    let (scene, scene_config) = scene_from_args(
+        args.scene.as_deref(),
+        args.avatar.as_deref(),
+        args.garment.as_deref(),
+        args.motions.as_deref(),
+    )?;
+    let mut train = TrainConfig {
+        fps: scene.training_fps,
+        ..Default::default()
+    };
     train.backend = match args.backend {
         Backend::Cpu => BackendKind::Cpu,
         Backend::Wgpu => BackendKind::Wgpu,
@@ -226,7 +264,11 @@ pub struct EvalArgs {
 
 /// Runs `eval`: prints the §4.2 metrics per motion and their mean, as JSON.
 pub fn eval(args: EvalArgs) -> anyhow::Result<()> {
-    anyhow::ensure!((0.0..=2.0).contains(&args.w), "w = {} is outside [0, 2]", args.w);
+    anyhow::ensure!(
+        (0.0..=2.0).contains(&args.w),
+        "w = {} is outside [0, 2]",
+        args.w
+    );
     let split = match args.split.as_str() {
         "train" => Split::Train,
         "validation" => Split::Validation,

@@ -169,9 +169,11 @@ impl TriMesh {
     /// Axis-aligned bounds `(min, max)`; `None` for an empty mesh.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let first = *self.positions.first()?;
-        Some(self.positions.iter().fold((first, first), |(lo, hi), p| {
-            (lo.inf(p), hi.sup(p))
-        }))
+        Some(
+            self.positions
+                .iter()
+                .fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p))),
+        )
     }
 
     /// Applies `f` to every position.
@@ -188,7 +190,9 @@ impl TriMesh {
         let mut seen = std::collections::HashSet::new();
         for (f, face) in self.faces.iter().enumerate() {
             let repeats = face[0] == face[1] || face[1] == face[2] || face[0] == face[2];
-            if repeats || !(areas[f] > DEGENERATE_AREA_M2) {
+            // NaN areas count as degenerate.
+            let usable = areas[f] > DEGENERATE_AREA_M2;
+            if repeats || !usable {
                 report.degenerate_faces.push(f);
             }
             let mut key = *face;
@@ -229,7 +233,11 @@ impl TriMesh {
     pub fn remove_bad_faces(&mut self) -> usize {
         let report = self.report();
         let mut drop = vec![false; self.faces.len()];
-        for &f in report.degenerate_faces.iter().chain(&report.duplicate_faces) {
+        for &f in report
+            .degenerate_faces
+            .iter()
+            .chain(&report.duplicate_faces)
+        {
             drop[f] = true;
         }
         let before = self.faces.len();
@@ -284,7 +292,11 @@ mod tests {
     #[test]
     fn degenerate_vertex_normal_is_finite() {
         let m = TriMesh::new(vec![Vec3::zeros(); 3], vec![[0, 1, 2]]).unwrap();
-        assert!(m.vertex_normals().iter().all(|n| n.iter().all(|c| c.is_finite())));
+        assert!(
+            m.vertex_normals()
+                .iter()
+                .all(|n| n.iter().all(|c| c.is_finite()))
+        );
         assert_eq!(m.report().degenerate_faces, vec![0]);
     }
 

@@ -36,7 +36,9 @@ pub fn slerp_unit(a: &Quat, b: &Quat, t: f32) -> Quat {
     };
     // nalgebra's slerp falls back to nlerp when the quaternions are (anti)parallel. Its f32
     // result drifts off unit length for small angles (sqrt(1 - c^2) cancels), so renormalise.
-    a.try_slerp(&b, t, 1e-6).map(|q| Quat::new_normalize(q.into_inner())).unwrap_or(*a)
+    a.try_slerp(&b, t, 1e-6)
+        .map(|q| Quat::new_normalize(q.into_inner()))
+        .unwrap_or(*a)
 }
 
 /// Builds a unit quaternion from raw `[x, y, z, w]` components, normalising when the norm is

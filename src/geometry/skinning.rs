@@ -69,7 +69,11 @@ impl SkinWeights {
 }
 
 /// Skins `positions` with `skin_from_bind[j] = world_from_joint[j] * joint_from_bind[j]`.
-pub fn linear_blend_skin(positions: &[Vec3], skin: &SkinWeights, skin_from_bind: &[Mat4]) -> Vec<Vec3> {
+pub fn linear_blend_skin(
+    positions: &[Vec3],
+    skin: &SkinWeights,
+    skin_from_bind: &[Mat4],
+) -> Vec<Vec3> {
     let mut out = vec![Vec3::zeros(); positions.len()];
     linear_blend_skin_into(positions, skin, skin_from_bind, &mut out);
     out
@@ -77,7 +81,12 @@ pub fn linear_blend_skin(positions: &[Vec3], skin: &SkinWeights, skin_from_bind:
 
 /// Like [`linear_blend_skin`] but writes into `out` (no allocation). Joint indices outside
 /// `skin_from_bind` are ignored (their weight is dropped).
-pub fn linear_blend_skin_into(positions: &[Vec3], skin: &SkinWeights, skin_from_bind: &[Mat4], out: &mut [Vec3]) {
+pub fn linear_blend_skin_into(
+    positions: &[Vec3],
+    skin: &SkinWeights,
+    skin_from_bind: &[Mat4],
+    out: &mut [Vec3],
+) {
     for (((p, joints), weights), o) in positions
         .iter()
         .zip(&skin.joints)
@@ -87,10 +96,10 @@ pub fn linear_blend_skin_into(positions: &[Vec3], skin: &SkinWeights, skin_from_
         let mut m = Mat4::zeros();
         for k in 0..MAX_INFLUENCES {
             let w = weights[k];
-            if w != 0.0 {
-                if let Some(jm) = skin_from_bind.get(joints[k] as usize) {
-                    m += jm * w;
-                }
+            if w != 0.0
+                && let Some(jm) = skin_from_bind.get(joints[k] as usize)
+            {
+                m += jm * w;
             }
         }
         *o = m.fixed_view::<3, 3>(0, 0) * p + m.fixed_view::<3, 1>(0, 3);

@@ -37,7 +37,9 @@ impl Topology {
 
     /// Builds the connectivity of `vertex_count` vertices joined by `faces`.
     pub fn from_faces(vertex_count: usize, faces: &[[u32; 3]]) -> Self {
-        let mut edge_faces: HashMap<[u32; 2], Vec<(u32, [u32; 2], u32)>> = HashMap::new();
+        // Per edge: (face, directed edge as it appears in the face, opposite vertex).
+        type EdgeUse = (u32, [u32; 2], u32);
+        let mut edge_faces: HashMap<[u32; 2], Vec<EdgeUse>> = HashMap::new();
         let mut edges = Vec::new();
         let mut neighbours = vec![Vec::new(); vertex_count];
         for (f, face) in faces.iter().enumerate() {
@@ -95,7 +97,12 @@ impl Topology {
             .iter()
             .map(|h| {
                 let p = |i: u32| positions[i as usize];
-                dihedral_angle(p(h.edge[0]), p(h.edge[1]), p(h.opposite[0]), p(h.opposite[1]))
+                dihedral_angle(
+                    p(h.edge[0]),
+                    p(h.edge[1]),
+                    p(h.opposite[0]),
+                    p(h.opposite[1]),
+                )
             })
             .collect()
     }

@@ -55,8 +55,9 @@ pub struct History {
 
 impl PhysicsTerms {
     /// Metrics of the batch `x` (`[B, V, 3]`), averaged over the batch. Every metric is
-    /// computed whatever the effects are (bending and collision need their data: hinges are
-    /// evaluated only if uploaded, collision only with `contacts`).
+    /// computed whatever the effects are, except that bending needs the hinges (uploaded with
+    /// the bending effect), collision needs `contacts` and inertia `history`, each of the same
+    /// shape as `x` (otherwise that metric is left out).
     pub fn metrics(
         &self,
         x: &Tensor<3>,
@@ -108,14 +109,15 @@ impl PhysicsTerms {
             // weight >= 0, so its sign is the 0/1 mask of usable hinges.
             m.bending_rad = mean(per_sample(delta.abs() * weight.clone().sign()))? / usable;
         }
-        if let Some(contacts) = contacts {
+        if let Some(contacts) = contacts.filter(|c| c.points.dims() == x.dims()) {
             let colliding = rest.collide.iter().filter(|c| **c).count();
             if let Some(frac) = collision::inside_fraction(&x, contacts, rt, colliding) {
                 m.collision_pct = Some(100.0 * mean(frac)?);
             }
         }
         m.gravity_j = mean(energies::gravity(&x, rt))?;
-        if let Some(h) = history {
+        if let Some(h) = history.filter(|h| h.x_t1.dims() == x.dims() && h.x_t2.dims() == x.dims())
+        {
             m.inertia_j = Some(mean(energies::inertia(
                 &x, &h.x_t1, &h.x_t2, rt, h.dt_secs,
             ))?);

@@ -110,9 +110,12 @@ impl EnvelopeCholesky {
         self.values.len()
     }
 
-    /// Solves `A x = b` in place (`b.len()` must equal [`Self::len`]).
+    /// Solves `A x = b` in place; a `b` of the wrong length is left unchanged.
     pub fn solve_in_place(&self, b: &mut [f64]) {
-        let n = self.len().min(b.len());
+        if b.len() != self.len() {
+            return;
+        }
+        let n = self.len();
         let mut y: Vec<f64> = (0..n).map(|i| b[self.perm[i]]).collect();
         for i in 0..n {
             let (f, o) = (self.first[i], self.offset[i]);

@@ -206,6 +206,13 @@ impl PhysicsTerms {
         }
         if self.effects.collision {
             let contacts = contacts.ok_or(PhysicsError::MissingBody)?;
+            if contacts.points.dims() != x.dims() {
+                return Err(PhysicsError::ShapeMismatch {
+                    what: "collision contacts".into(),
+                    expected: format!("{:?}", x.dims()),
+                    found: format!("{:?}", contacts.points.dims()),
+                });
+            }
             out.push((
                 Term::Collision,
                 collision::collision(
@@ -250,8 +257,8 @@ impl PhysicsTerms {
         })
     }
 
-    /// Inertia loss (batch mean) of `x_t` given the two previous frames; gradients reach only
-    /// `x_t`. None when dynamics is off.
+    /// Inertia loss (batch mean) of `x_t` given the two previous frames (all three `[B, V, 3]`);
+    /// gradients reach only `x_t`. None when dynamics is off.
     pub fn inertia(
         &self,
         x_t: &Tensor<3>,

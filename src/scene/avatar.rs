@@ -33,7 +33,10 @@ impl Avatar {
         motions: Vec<Motion>,
     ) -> Result<Self, SceneError> {
         let name = name.into();
-        bind_mesh.validate().map_err(|e| SceneError::Mesh { what: format!("avatar '{name}' body"), source: e })?;
+        bind_mesh.validate().map_err(|e| SceneError::Mesh {
+            what: format!("avatar '{name}' body"),
+            source: e,
+        })?;
         if skin.len() != bind_mesh.vertex_count() {
             return Err(SceneError::JointCountMismatch {
                 what: format!("avatar '{name}' skin weights (one per vertex)"),
@@ -41,42 +44,63 @@ impl Avatar {
                 found: skin.len(),
             });
         }
-        if let Some(j) = skin.max_joint() {
-            if j as usize >= skeleton.len() {
+        if let Some(j) = skin.max_joint()
+            && j as usize >= skeleton.len()
+        {
+            return Err(SceneError::JointCountMismatch {
+                what: format!(
+                    "avatar '{name}' skin weights refer to joint {j}; joints in skeleton"
+                ),
+                expected: skeleton.len(),
+                found: j as usize + 1,
+            });
+        }
+        for m in &motions {
+            if let Some(p) = m.frames.first()
+                && p.rotations.len() != skeleton.len()
+            {
                 return Err(SceneError::JointCountMismatch {
-                    what: format!("avatar '{name}' skin weights refer to joint {j}; joints in skeleton"),
+                    what: format!("motion '{}' for avatar '{name}'", m.name),
                     expected: skeleton.len(),
-                    found: j as usize + 1,
+                    found: p.rotations.len(),
                 });
             }
         }
-        for m in &motions {
-            if let Some(p) = m.frames.first() {
-                if p.rotations.len() != skeleton.len() {
-                    return Err(SceneError::JointCountMismatch {
-                        what: format!("motion '{}' for avatar '{name}'", m.name),
-                        expected: skeleton.len(),
-                        found: p.rotations.len(),
-                    });
-                }
-            }
-        }
         let mut rest_mesh = bind_mesh.clone();
-        rest_mesh.positions = linear_blend_skin(&bind_mesh.positions, &skin, &skeleton.skin_from_bind(&skeleton.rest_pose()));
-        rest_mesh
-            .validate()
-            .map_err(|e| SceneError::Mesh { what: format!("avatar '{name}' rest pose"), source: e })?;
-        Ok(Self { name, skeleton, bind_mesh, skin, rest_mesh, motions })
+        rest_mesh.positions = linear_blend_skin(
+            &bind_mesh.positions,
+            &skin,
+            &skeleton.skin_from_bind(&skeleton.rest_pose()),
+        );
+        rest_mesh.validate().map_err(|e| SceneError::Mesh {
+            what: format!("avatar '{name}' rest pose"),
+            source: e,
+        })?;
+        Ok(Self {
+            name,
+            skeleton,
+            bind_mesh,
+            skin,
+            rest_mesh,
+            motions,
+        })
     }
 
     /// Body vertex positions in world space under `pose`.
     pub fn pose_vertices(&self, pose: &Pose) -> Vec<Vec3> {
-        linear_blend_skin(&self.bind_mesh.positions, &self.skin, &self.skeleton.skin_from_bind(pose))
+        linear_blend_skin(
+            &self.bind_mesh.positions,
+            &self.skin,
+            &self.skeleton.skin_from_bind(pose),
+        )
     }
 
     /// Height of the rest mesh along Y in metres.
     pub fn height_m(&self) -> f32 {
-        self.rest_mesh.bounds().map(|(lo, hi)| hi.y - lo.y).unwrap_or(0.0)
+        self.rest_mesh
+            .bounds()
+            .map(|(lo, hi)| hi.y - lo.y)
+            .unwrap_or(0.0)
     }
 
     /// The motion called `name`.

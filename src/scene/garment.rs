@@ -19,7 +19,10 @@ pub struct GarmentOptions {
 
 impl Default for GarmentOptions {
     fn default() -> Self {
-        Self { smoothing_passes: 3, max_distance_m: 0.5 }
+        Self {
+            smoothing_passes: 3,
+            max_distance_m: 0.5,
+        }
     }
 }
 
@@ -47,9 +50,17 @@ impl Garment {
     ///
     /// Degenerate and duplicate faces are removed (with a warning); non-manifold edges and a
     /// template far from the body are errors.
-    pub fn new(name: impl Into<String>, mut mesh: TriMesh, avatar: &Avatar, options: &GarmentOptions) -> Result<Self, SceneError> {
+    pub fn new(
+        name: impl Into<String>,
+        mut mesh: TriMesh,
+        avatar: &Avatar,
+        options: &GarmentOptions,
+    ) -> Result<Self, SceneError> {
         let name = name.into();
-        mesh.validate().map_err(|e| SceneError::Mesh { what: format!("garment '{name}'"), source: e })?;
+        mesh.validate().map_err(|e| SceneError::Mesh {
+            what: format!("garment '{name}'"),
+            source: e,
+        })?;
         let mut warnings = Vec::new();
         let removed = mesh.remove_bad_faces();
         if removed > 0 {
@@ -67,14 +78,35 @@ impl Garment {
             });
         }
         if mesh.faces.is_empty() {
-            return Err(SceneError::InvalidGarment { name, reason: "no usable faces".into() });
+            return Err(SceneError::InvalidGarment {
+                name,
+                reason: "no usable faces".into(),
+            });
         }
         if report.unreferenced_vertices > 0 {
-            warnings.push(format!("{} vertices belong to no face", report.unreferenced_vertices));
+            warnings.push(format!(
+                "{} vertices belong to no face",
+                report.unreferenced_vertices
+            ));
         }
         let topology = Topology::new(&mesh);
-        let skin = transfer_skin_weights(&avatar.rest_mesh.positions, &avatar.skin, &mesh.positions, &topology, options, &name)?;
-        Ok(Self { name, mesh, topology, skin, pinned: Vec::new(), no_collide: Vec::new(), warnings })
+        let skin = transfer_skin_weights(
+            &avatar.rest_mesh.positions,
+            &avatar.skin,
+            &mesh.positions,
+            &topology,
+            options,
+            &name,
+        )?;
+        Ok(Self {
+            name,
+            mesh,
+            topology,
+            skin,
+            pinned: Vec::new(),
+            no_collide: Vec::new(),
+            warnings,
+        })
     }
 
     /// Garment vertices skinned by `pose` of `avatar` (no neural offsets).
@@ -83,9 +115,20 @@ impl Garment {
     }
 
     /// Template plus optional rest-space `offsets`, skinned by `pose`.
-    pub fn pose_with_offsets(&self, avatar: &Avatar, pose: &Pose, offsets: Option<&[Vec3]>) -> Vec<Vec3> {
+    pub fn pose_with_offsets(
+        &self,
+        avatar: &Avatar,
+        pose: &Pose,
+        offsets: Option<&[Vec3]>,
+    ) -> Vec<Vec3> {
         let rest: Vec<Vec3> = match offsets {
-            Some(o) => self.mesh.positions.iter().zip(o).map(|(p, d)| p + d).collect(),
+            Some(o) => self
+                .mesh
+                .positions
+                .iter()
+                .zip(o)
+                .map(|(p, d)| p + d)
+                .collect(),
             None => self.mesh.positions.clone(),
         };
         // The template lives in world rest space, so skin with world_from_joint * rest_from_world.
@@ -95,7 +138,11 @@ impl Garment {
         let mats: Vec<_> = posed
             .iter()
             .zip(&rest_world)
-            .map(|(p, r)| p * r.try_inverse().unwrap_or_else(crate::geometry::Mat4::identity))
+            .map(|(p, r)| {
+                p * r
+                    .try_inverse()
+                    .unwrap_or_else(crate::geometry::Mat4::identity)
+            })
             .collect();
         linear_blend_skin(&rest, &self.skin, &mats)
     }
@@ -121,13 +168,25 @@ pub fn transfer_skin_weights(
     let mut farthest = 0.0f32;
     for p in garment_positions {
         let Some((i, d2)) = tree.nearest(p) else {
-            return Err(SceneError::InvalidGarment { name: name.into(), reason: "avatar has no vertices".into() });
+            return Err(SceneError::InvalidGarment {
+                name: name.into(),
+                reason: "avatar has no vertices".into(),
+            });
         };
         farthest = farthest.max(d2.sqrt());
         let i = i as usize;
-        dense.push(body_skin.joints[i].iter().copied().zip(body_skin.weights[i].iter().copied()).filter(|(_, w)| *w > 0.0).collect());
+        dense.push(
+            body_skin.joints[i]
+                .iter()
+                .copied()
+                .zip(body_skin.weights[i].iter().copied())
+                .filter(|(_, w)| *w > 0.0)
+                .collect(),
+        );
     }
-    if !(farthest <= options.max_distance_m) {
+    // A NaN distance fails the check too.
+    let within = farthest <= options.max_distance_m;
+    if !within {
         return Err(SceneError::InvalidGarment {
             name: name.into(),
             reason: format!(

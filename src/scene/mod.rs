@@ -101,7 +101,12 @@ impl Scene {
             });
         }
         for (m, _) in &motions {
-            if let Some(found) = m.frames.iter().map(|p| p.rotations.len()).find(|&n| n != avatar.skeleton.len()) {
+            if let Some(found) = m
+                .frames
+                .iter()
+                .map(|p| p.rotations.len())
+                .find(|&n| n != avatar.skeleton.len())
+            {
                 return Err(SceneError::JointCountMismatch {
                     what: format!("motion '{}' for avatar '{}'", m.name, avatar.name),
                     expected: avatar.skeleton.len(),
@@ -109,11 +114,22 @@ impl Scene {
                 });
             }
         }
-        Ok(Self { name, avatar, garment, motions, effects, fabric, training_fps })
+        Ok(Self {
+            name,
+            avatar,
+            garment,
+            motions,
+            effects,
+            fabric,
+            training_fps,
+        })
     }
 
     /// The motions in `split`.
     pub fn motions_in(&self, split: Split) -> impl Iterator<Item = &Motion> {
-        self.motions.iter().filter(move |(_, s)| *s == split).map(|(m, _)| m)
+        self.motions
+            .iter()
+            .filter(move |(_, s)| *s == split)
+            .map(|(m, _)| m)
     }
 }

@@ -24,13 +24,24 @@ pub const UNIT_TOLERANCE: f32 = 1e-3;
 impl Motion {
     /// Builds a motion, checking the rate, joint counts and finiteness, and renormalising
     /// rotations whose norm is within [`UNIT_TOLERANCE`] of 1.
-    pub fn new(name: impl Into<String>, fps: f32, mut frames: Vec<Pose>, joints: usize) -> Result<Self, SceneError> {
+    pub fn new(
+        name: impl Into<String>,
+        fps: f32,
+        mut frames: Vec<Pose>,
+        joints: usize,
+    ) -> Result<Self, SceneError> {
         let name = name.into();
         if !(fps.is_finite() && fps > 0.0) {
-            return Err(SceneError::InvalidMotion { name, reason: format!("frame rate {fps} is not positive") });
+            return Err(SceneError::InvalidMotion {
+                name,
+                reason: format!("frame rate {fps} is not positive"),
+            });
         }
         if frames.is_empty() {
-            return Err(SceneError::InvalidMotion { name, reason: "no frames".into() });
+            return Err(SceneError::InvalidMotion {
+                name,
+                reason: "no frames".into(),
+            });
         }
         for (f, pose) in frames.iter_mut().enumerate() {
             if pose.rotations.len() != joints {
@@ -41,7 +52,10 @@ impl Motion {
                 });
             }
             if !pose.root_translation.iter().all(|v| v.is_finite()) {
-                return Err(SceneError::InvalidMotion { name, reason: format!("frame {f}: non-finite root translation") });
+                return Err(SceneError::InvalidMotion {
+                    name,
+                    reason: format!("frame {f}: non-finite root translation"),
+                });
             }
             for (j, q) in pose.rotations.iter_mut().enumerate() {
                 let raw = q.into_inner();
@@ -49,7 +63,9 @@ impl Motion {
                 if !(n.is_finite() && (n - 1.0).abs() <= UNIT_TOLERANCE) {
                     return Err(SceneError::InvalidMotion {
                         name,
-                        reason: format!("frame {f}, joint {j}: rotation is not a unit quaternion (norm {n})"),
+                        reason: format!(
+                            "frame {f}, joint {j}: rotation is not a unit quaternion (norm {n})"
+                        ),
                     });
                 }
                 *q = Quat::new_unchecked(raw / n);
@@ -60,7 +76,11 @@ impl Motion {
 
     /// A motion that holds `pose` still for `frames` frames.
     pub fn still(name: impl Into<String>, pose: Pose, fps: f32, frames: usize) -> Self {
-        Self { name: name.into(), fps, frames: vec![pose; frames.max(1)] }
+        Self {
+            name: name.into(),
+            fps,
+            frames: vec![pose; frames.max(1)],
+        }
     }
 
     /// Number of frames.
@@ -77,7 +97,11 @@ impl Motion {
     /// linear interpolation.
     pub fn sample(&self, time_secs: f32) -> Pose {
         let last = self.frames.len() - 1;
-        let x = if time_secs.is_finite() { (time_secs * self.fps).clamp(0.0, last as f32) } else { 0.0 };
+        let x = if time_secs.is_finite() {
+            (time_secs * self.fps).clamp(0.0, last as f32)
+        } else {
+            0.0
+        };
         let i = (x.floor() as usize).min(last);
         let t = x - i as f32;
         let j = (i + 1).min(last);
@@ -86,7 +110,12 @@ impl Motion {
         }
         let (a, b) = (&self.frames[i], &self.frames[j]);
         Pose {
-            rotations: a.rotations.iter().zip(&b.rotations).map(|(qa, qb)| slerp_unit(qa, qb, t)).collect(),
+            rotations: a
+                .rotations
+                .iter()
+                .zip(&b.rotations)
+                .map(|(qa, qb)| slerp_unit(qa, qb, t))
+                .collect(),
             root_translation: a.root_translation.lerp(&b.root_translation, t),
         }
     }
@@ -94,18 +123,31 @@ impl Motion {
     /// The same motion sampled at `fps` over the same duration (at least one frame).
     pub fn resample(&self, fps: f32) -> Result<Self, SceneError> {
         if !(fps.is_finite() && fps > 0.0) {
-            return Err(SceneError::InvalidMotion { name: self.name.clone(), reason: format!("target frame rate {fps} is not positive") });
+            return Err(SceneError::InvalidMotion {
+                name: self.name.clone(),
+                reason: format!("target frame rate {fps} is not positive"),
+            });
         }
         let count = (self.duration_secs() * fps + 1e-3).floor() as usize + 1;
         let frames = (0..count).map(|k| self.sample(k as f32 / fps)).collect();
-        Ok(Self { name: self.name.clone(), fps, frames })
+        Ok(Self {
+            name: self.name.clone(),
+            fps,
+            frames,
+        })
     }
 
     /// Frames `[start, end)` as a new motion.
     pub fn slice(&self, start: usize, end: usize) -> Self {
-        let end = end.min(self.frames.len()).max(start.min(self.frames.len() - 1) + 1);
+        let end = end
+            .min(self.frames.len())
+            .max(start.min(self.frames.len() - 1) + 1);
         let start = start.min(end - 1);
-        Self { name: self.name.clone(), fps: self.fps, frames: self.frames[start..end].to_vec() }
+        Self {
+            name: self.name.clone(),
+            fps: self.fps,
+            frames: self.frames[start..end].to_vec(),
+        }
     }
 
     /// The left/right mirror of this motion about the skeleton's sagittal (world YZ) plane.
@@ -117,8 +159,16 @@ impl Motion {
     pub fn mirrored(&self, skeleton: &Skeleton) -> Self {
         let pairs = mirror_map(&skeleton.names);
         let rest = skeleton.rest_pose();
-        let rest_world: Vec<Quat> = skeleton.world_from_joint(&rest).iter().map(rotation_of).collect();
-        let root_parent: Vec<Quat> = skeleton.world_from_root_parent.iter().map(rotation_of).collect();
+        let rest_world: Vec<Quat> = skeleton
+            .world_from_joint(&rest)
+            .iter()
+            .map(rotation_of)
+            .collect();
+        let root_parent: Vec<Quat> = skeleton
+            .world_from_root_parent
+            .iter()
+            .map(rotation_of)
+            .collect();
         let reflect = |q: &Quat| {
             let c = q.coords; // (x, y, z, w)
             Quat::new_unchecked(nalgebra::Quaternion::new(c.w, c.x, -c.y, -c.z))
@@ -127,7 +177,11 @@ impl Motion {
             .frames
             .iter()
             .map(|pose| {
-                let world: Vec<Quat> = skeleton.world_from_joint(pose).iter().map(rotation_of).collect();
+                let world: Vec<Quat> = skeleton
+                    .world_from_joint(pose)
+                    .iter()
+                    .map(rotation_of)
+                    .collect();
                 let mut mirrored_world = vec![Quat::identity(); skeleton.len()];
                 for j in 0..skeleton.len() {
                     let delta = world[j] * rest_world[j].inverse();
@@ -151,10 +205,17 @@ impl Motion {
                     .try_inverse()
                     .map(|inv| inv.transform_point(&t_mirror).coords)
                     .unwrap_or(pose.root_translation);
-                Pose { rotations, root_translation }
+                Pose {
+                    rotations,
+                    root_translation,
+                }
             })
             .collect();
-        Self { name: format!("{} (mirrored)", self.name), fps: self.fps, frames }
+        Self {
+            name: format!("{} (mirrored)", self.name),
+            fps: self.fps,
+            frames,
+        }
     }
 }
 
@@ -174,13 +235,30 @@ pub fn mirror_map(names: &[String]) -> Vec<usize> {
 /// The name of the mirrored joint under common rig conventions (`LeftArm`/`RightArm`,
 /// `mixamorig:LeftArm`, `L_arm`/`R_arm`, `arm.L`/`arm.R`, `arm_l`/`arm_r`, `LHipJoint`), or `None`.
 pub fn mirror_name(name: &str) -> Option<String> {
-    const SWAPS: [(&str, &str); 4] = [("Left", "Right"), ("left", "right"), ("LEFT", "RIGHT"), ("Right", "Left")];
-    for (a, b) in SWAPS.iter().chain([("right", "left"), ("RIGHT", "LEFT")].iter()) {
+    const SWAPS: [(&str, &str); 4] = [
+        ("Left", "Right"),
+        ("left", "right"),
+        ("LEFT", "RIGHT"),
+        ("Right", "Left"),
+    ];
+    for (a, b) in SWAPS
+        .iter()
+        .chain([("right", "left"), ("RIGHT", "LEFT")].iter())
+    {
         if name.contains(a) {
             return Some(name.replacen(a, b, 1));
         }
     }
-    let suffixes = [(".L", ".R"), (".R", ".L"), ("_L", "_R"), ("_R", "_L"), ("_l", "_r"), ("_r", "_l"), (".l", ".r"), (".r", ".l")];
+    let suffixes = [
+        (".L", ".R"),
+        (".R", ".L"),
+        ("_L", "_R"),
+        ("_R", "_L"),
+        ("_l", "_r"),
+        ("_r", "_l"),
+        (".l", ".r"),
+        (".r", ".l"),
+    ];
     for (a, b) in suffixes {
         if let Some(stem) = name.strip_suffix(a) {
             return Some(format!("{stem}{b}"));
@@ -194,11 +272,11 @@ pub fn mirror_name(name: &str) -> Option<String> {
     }
     // CMU style: "LHipJoint", "RThumb": a single capital L/R followed by another capital.
     let mut chars = name.chars();
-    if let (Some(first @ ('L' | 'R')), Some(second)) = (chars.next(), chars.next()) {
-        if second.is_ascii_uppercase() {
-            let other = if first == 'L' { 'R' } else { 'L' };
-            return Some(format!("{other}{}", &name[1..]));
-        }
+    if let (Some(first @ ('L' | 'R')), Some(second)) = (chars.next(), chars.next())
+        && second.is_ascii_uppercase()
+    {
+        let other = if first == 'L' { 'R' } else { 'L' };
+        return Some(format!("{other}{}", &name[1..]));
     }
     None
 }
@@ -206,15 +284,25 @@ pub fn mirror_name(name: &str) -> Option<String> {
 /// Root-translation-free check used by tests and importers: every rotation is finite.
 pub fn pose_is_finite(pose: &Pose) -> bool {
     pose.root_translation.iter().all(|v| v.is_finite())
-        && pose.rotations.iter().all(|q| q.coords.iter().all(|v| v.is_finite()))
+        && pose
+            .rotations
+            .iter()
+            .all(|q| q.coords.iter().all(|v| v.is_finite()))
 }
 
 /// A helper for building poses from Euler-like per-joint rotations: `(joint, axis, radians)`.
-pub fn pose_with(skeleton: &Skeleton, root_translation: Vec3, rotations: &[(usize, Vec3, f32)]) -> Pose {
+pub fn pose_with(
+    skeleton: &Skeleton,
+    root_translation: Vec3,
+    rotations: &[(usize, Vec3, f32)],
+) -> Pose {
     let mut pose = skeleton.rest_pose();
     pose.root_translation = root_translation;
     for &(j, axis, angle) in rotations {
-        if let (Some(q), Some(axis)) = (pose.rotations.get_mut(j), nalgebra::Unit::try_new(axis, 1e-9)) {
+        if let (Some(q), Some(axis)) = (
+            pose.rotations.get_mut(j),
+            nalgebra::Unit::try_new(axis, 1e-9),
+        ) {
             *q *= Quat::from_axis_angle(&axis, angle);
         }
     }
@@ -229,7 +317,10 @@ mod tests {
     #[test]
     fn mirror_names() {
         assert_eq!(mirror_name("LeftUpLeg").as_deref(), Some("RightUpLeg"));
-        assert_eq!(mirror_name("mixamorig:RightHand").as_deref(), Some("mixamorig:LeftHand"));
+        assert_eq!(
+            mirror_name("mixamorig:RightHand").as_deref(),
+            Some("mixamorig:LeftHand")
+        );
         assert_eq!(mirror_name("upperarm.L").as_deref(), Some("upperarm.R"));
         assert_eq!(mirror_name("LHipJoint").as_deref(), Some("RHipJoint"));
         assert_eq!(mirror_name("Spine"), None);
@@ -240,7 +331,11 @@ mod tests {
         let frames = (0..121)
             .map(|k| {
                 let t = k as f32 / 120.0;
-                pose_with(sk, Vec3::new(t, 0.0, 0.0), &[(0, Vec3::y(), 3.0 * t), (1, Vec3::z(), (7.0 * t).sin())])
+                pose_with(
+                    sk,
+                    Vec3::new(t, 0.0, 0.0),
+                    &[(0, Vec3::y(), 3.0 * t), (1, Vec3::z(), (7.0 * t).sin())],
+                )
             })
             .collect();
         Motion::new("spin", 120.0, frames, sk.len()).unwrap()
@@ -256,7 +351,12 @@ mod tests {
             .frames
             .iter()
             .zip(&back.frames)
-            .flat_map(|(a, b)| a.rotations.iter().zip(&b.rotations).map(|(x, y)| angle_between(x, y)))
+            .flat_map(|(a, b)| {
+                a.rotations
+                    .iter()
+                    .zip(&b.rotations)
+                    .map(|(x, y)| angle_between(x, y))
+            })
             .fold(0.0f32, f32::max);
         assert!(worst < 0.01, "worst {worst} rad");
     }
@@ -270,7 +370,10 @@ mod tests {
         pose.rotations[1] = Quat::new_unchecked(nalgebra::Quaternion::new(f32::NAN, 0.0, 0.0, 0.0));
         assert!(Motion::new("x", 30.0, vec![pose], 3).is_err());
         assert!(Motion::new("x", 0.0, vec![sk.rest_pose()], 3).is_err());
-        assert!(matches!(Motion::new("x", 30.0, vec![sk.rest_pose()], 4), Err(SceneError::JointCountMismatch { .. })));
+        assert!(matches!(
+            Motion::new("x", 30.0, vec![sk.rest_pose()], 4),
+            Err(SceneError::JointCountMismatch { .. })
+        ));
     }
 
     #[test]

@@ -72,9 +72,14 @@ impl Skeleton {
         if n == 0 {
             return Err(SceneError::InvalidSkeleton("no joints".into()));
         }
-        if [parents.len(), rest_local.len(), joint_from_bind.len(), world_from_root_parent.len()]
-            .iter()
-            .any(|&len| len != n)
+        if [
+            parents.len(),
+            rest_local.len(),
+            joint_from_bind.len(),
+            world_from_root_parent.len(),
+        ]
+        .iter()
+        .any(|&len| len != n)
         {
             return Err(SceneError::InvalidSkeleton(format!(
                 "{n} names but {} parents, {} rest transforms, {} inverse bind matrices, {} root spaces",
@@ -85,23 +90,28 @@ impl Skeleton {
             )));
         }
         for (j, p) in parents.iter().enumerate() {
-            if let Some(p) = *p {
-                if p >= j {
-                    return Err(SceneError::InvalidSkeleton(format!(
-                        "joint {j} '{}' has parent {p}, which does not precede it",
-                        names[j]
-                    )));
-                }
+            if let Some(p) = *p
+                && p >= j
+            {
+                return Err(SceneError::InvalidSkeleton(format!(
+                    "joint {j} '{}' has parent {p}, which does not precede it",
+                    names[j]
+                )));
             }
         }
         let mut seen = std::collections::HashSet::new();
         for name in &names {
             if !seen.insert(name.as_str()) {
-                return Err(SceneError::InvalidSkeleton(format!("duplicate joint name '{name}'")));
+                return Err(SceneError::InvalidSkeleton(format!(
+                    "duplicate joint name '{name}'"
+                )));
             }
         }
         let finite = |m: &Mat4| m.iter().all(|v| v.is_finite());
-        if !joint_from_bind.iter().chain(&world_from_root_parent).all(finite)
+        if !joint_from_bind
+            .iter()
+            .chain(&world_from_root_parent)
+            .all(finite)
             || !rest_local.iter().all(|t| finite(&t.to_matrix()))
         {
             return Err(SceneError::InvalidSkeleton("non-finite transform".into()));
@@ -144,7 +154,11 @@ impl Skeleton {
         for j in 0..self.len() {
             let rest = &self.rest_local[j];
             let local = JointTransform {
-                translation: if j == 0 { pose.root_translation } else { rest.translation },
+                translation: if j == 0 {
+                    pose.root_translation
+                } else {
+                    rest.translation
+                },
                 rotation: pose.rotations.get(j).copied().unwrap_or(rest.rotation),
                 scale: rest.scale,
             }
@@ -198,7 +212,9 @@ pub fn rotation_of(m: &Mat4) -> Quat {
         return Quat::identity();
     };
     let c2 = c0.cross(&c1);
-    let rot = nalgebra::Rotation3::from_matrix_unchecked(crate::geometry::Mat3::from_columns(&[c0, c1, c2]));
+    let rot = nalgebra::Rotation3::from_matrix_unchecked(crate::geometry::Mat3::from_columns(&[
+        c0, c1, c2,
+    ]));
     Quat::from_rotation_matrix(&rot)
 }
 
@@ -210,8 +226,14 @@ pub(crate) mod tests {
     pub fn chain() -> Skeleton {
         let rest = vec![
             JointTransform::default(),
-            JointTransform { translation: Vec3::y(), ..Default::default() },
-            JointTransform { translation: Vec3::y(), ..Default::default() },
+            JointTransform {
+                translation: Vec3::y(),
+                ..Default::default()
+            },
+            JointTransform {
+                translation: Vec3::y(),
+                ..Default::default()
+            },
         ];
         let parents = vec![None, Some(0), Some(1)];
         let mut sk = Skeleton::new(
@@ -223,7 +245,11 @@ pub(crate) mod tests {
         )
         .unwrap();
         let rest_pose = sk.rest_pose();
-        sk.joint_from_bind = sk.world_from_joint(&rest_pose).iter().map(|m| m.try_inverse().unwrap()).collect();
+        sk.joint_from_bind = sk
+            .world_from_joint(&rest_pose)
+            .iter()
+            .map(|m| m.try_inverse().unwrap())
+            .collect();
         sk
     }
 
@@ -243,8 +269,26 @@ pub(crate) mod tests {
     fn rejects_bad_order_and_duplicates() {
         let t = vec![JointTransform::default(); 2];
         let i = vec![Mat4::identity(); 2];
-        assert!(Skeleton::new(vec!["a".into(), "b".into()], vec![Some(1), None], t.clone(), i.clone(), i.clone()).is_err());
-        assert!(Skeleton::new(vec!["a".into(), "a".into()], vec![None, Some(0)], t, i.clone(), i).is_err());
+        assert!(
+            Skeleton::new(
+                vec!["a".into(), "b".into()],
+                vec![Some(1), None],
+                t.clone(),
+                i.clone(),
+                i.clone()
+            )
+            .is_err()
+        );
+        assert!(
+            Skeleton::new(
+                vec!["a".into(), "a".into()],
+                vec![None, Some(0)],
+                t,
+                i.clone(),
+                i
+            )
+            .is_err()
+        );
     }
 
     #[test]

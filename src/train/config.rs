@@ -105,17 +105,70 @@ impl TrainConfig {
 
     /// Checks every field against its documented range.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        fn check(ok: bool, field: &'static str, value: impl ToString, range: &'static str) -> Result<(), ConfigError> {
-            if ok { Ok(()) } else { Err(ConfigError { field, value: value.to_string(), range }) }
+        fn check(
+            ok: bool,
+            field: &'static str,
+            value: impl ToString,
+            range: &'static str,
+        ) -> Result<(), ConfigError> {
+            if ok {
+                Ok(())
+            } else {
+                Err(ConfigError {
+                    field,
+                    value: value.to_string(),
+                    range,
+                })
+            }
         }
-        check((1..=256).contains(&self.batch_size), "batch_size", self.batch_size, "1..=256")?;
-        check((0.05..=4.0).contains(&self.window_secs), "window_secs", self.window_secs, "0.05..=4 s")?;
-        check((5.0..=240.0).contains(&self.fps), "fps", self.fps, "5..=240")?;
-        check(self.learning_rate > 0.0 && self.learning_rate <= 1.0, "learning_rate", self.learning_rate, "(0, 1]")?;
-        check(self.validate_every >= 1, "validate_every", self.validate_every, ">= 1")?;
-        check(self.snapshot_every >= 1, "snapshot_every", self.snapshot_every, ">= 1")?;
-        check(self.checkpoint_every >= 1, "checkpoint_every", self.checkpoint_every, ">= 1")?;
-        check((0.0..=0.9).contains(&self.augmentation_fraction), "augmentation_fraction", self.augmentation_fraction, "0..=0.9")?;
+        check(
+            (1..=256).contains(&self.batch_size),
+            "batch_size",
+            self.batch_size,
+            "1..=256",
+        )?;
+        check(
+            (0.05..=4.0).contains(&self.window_secs),
+            "window_secs",
+            self.window_secs,
+            "0.05..=4 s",
+        )?;
+        check(
+            (5.0..=240.0).contains(&self.fps),
+            "fps",
+            self.fps,
+            "5..=240",
+        )?;
+        check(
+            self.learning_rate > 0.0 && self.learning_rate <= 1.0,
+            "learning_rate",
+            self.learning_rate,
+            "(0, 1]",
+        )?;
+        check(
+            self.validate_every >= 1,
+            "validate_every",
+            self.validate_every,
+            ">= 1",
+        )?;
+        check(
+            self.snapshot_every >= 1,
+            "snapshot_every",
+            self.snapshot_every,
+            ">= 1",
+        )?;
+        check(
+            self.checkpoint_every >= 1,
+            "checkpoint_every",
+            self.checkpoint_every,
+            ">= 1",
+        )?;
+        check(
+            (0.0..=0.9).contains(&self.augmentation_fraction),
+            "augmentation_fraction",
+            self.augmentation_fraction,
+            "0..=0.9",
+        )?;
         if let Some(m) = self.max_minutes {
             check(m.is_finite() && m > 0.0, "max_minutes", m, "> 0")?;
         }
@@ -131,22 +184,40 @@ mod tests {
     fn window_frames_follow_the_paper() {
         let c = TrainConfig::default();
         assert_eq!(c.window_frames(), 15 + 3);
-        let c = TrainConfig { window_secs: 0.1, fps: 60.0, ..Default::default() };
+        let c = TrainConfig {
+            window_secs: 0.1,
+            fps: 60.0,
+            ..Default::default()
+        };
         assert_eq!(c.window_frames(), 6 + 3);
     }
 
     #[test]
     fn validation_names_the_field() {
         assert!(TrainConfig::default().validate().is_ok());
-        let e = TrainConfig { window_secs: 0.0, ..Default::default() }.validate().unwrap_err();
+        let e = TrainConfig {
+            window_secs: 0.0,
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err();
         assert_eq!(e.field, "window_secs");
-        let e = TrainConfig { batch_size: 0, ..Default::default() }.validate().unwrap_err();
+        let e = TrainConfig {
+            batch_size: 0,
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err();
         assert_eq!(e.field, "batch_size");
     }
 
     #[test]
     fn round_trips_through_toml() {
-        let c = TrainConfig { batch_size: 8, inertia_mode: InertiaMode::Snug, ..Default::default() };
+        let c = TrainConfig {
+            batch_size: 8,
+            inertia_mode: InertiaMode::Snug,
+            ..Default::default()
+        };
         let text = toml::to_string(&c).unwrap();
         assert_eq!(toml::from_str::<TrainConfig>(&text).unwrap(), c);
     }

@@ -6,10 +6,10 @@ use std::sync::{Arc, OnceLock};
 use rand::RngExt;
 use rand::rngs::StdRng;
 
+use crate::geometry::SkinWeights;
 use crate::model::{DescriptorConfig, DescriptorExtractor, Descriptors, SkinMatrixBuilder};
 use crate::physics::PosedBody;
 use crate::scene::config::Split;
-use crate::geometry::SkinWeights;
 use crate::scene::{Avatar, Motion, Pose};
 
 use super::TrainError;
@@ -84,7 +84,9 @@ impl Dataset {
             if *s != split {
                 continue;
             }
-            let resampled = motion.resample(fps).map_err(crate::model::ModelError::from)?;
+            let resampled = motion
+                .resample(fps)
+                .map_err(crate::model::ModelError::from)?;
             let mut variants = vec![resampled.clone()];
             if mirror {
                 variants.push(resampled.mirrored(&avatar.skeleton));
@@ -96,10 +98,20 @@ impl Dataset {
                     builder.append(pose, &mut matrices)?;
                 }
                 let bodies = (0..m.frames.len()).map(|_| OnceLock::new()).collect();
-                out.push(MotionData { name: m.name.clone(), poses: m.frames, descriptors, matrices, bodies });
+                out.push(MotionData {
+                    name: m.name.clone(),
+                    poses: m.frames,
+                    descriptors,
+                    matrices,
+                    bodies,
+                });
             }
         }
-        Ok(Self { motions: out, input_joints: extractor.joint_count(), skeleton_joints: builder.joint_count() })
+        Ok(Self {
+            motions: out,
+            input_joints: extractor.joint_count(),
+            skeleton_joints: builder.joint_count(),
+        })
     }
 
     /// True when the split has no frames.
@@ -158,11 +170,19 @@ impl Dataset {
         use rayon::prelude::*;
         let j_all = self.skeleton_joints;
         let v = skin.len();
-        let mut b = Batch { size: windows.len(), frames, windows: windows.to_vec(), ..Default::default() };
+        let mut b = Batch {
+            size: windows.len(),
+            frames,
+            windows: windows.to_vec(),
+            ..Default::default()
+        };
         let mut blocks: Vec<&[f32]> = Vec::with_capacity(windows.len() * 3);
         for &(mi, last) in windows {
-            let Some(m) = self.motions.get(mi) else { continue };
-            m.descriptors.append_window(last, frames, &mut b.static_desc, &mut b.dynamic_desc);
+            let Some(m) = self.motions.get(mi) else {
+                continue;
+            };
+            m.descriptors
+                .append_window(last, frames, &mut b.static_desc, &mut b.dynamic_desc);
             for back in (0..3).rev() {
                 let f = last.saturating_sub(back).min(m.frames().saturating_sub(1));
                 let start = f * j_all * MAT;
@@ -172,16 +192,30 @@ impl Dataset {
             }
         }
         b.blended = vec![0.0; blocks.len() * v * MAT];
-        b.blended.par_chunks_mut(v * MAT).zip(blocks.par_iter()).for_each(|(out, joints)| blend_matrices(joints, skin, out));
+        b.blended
+            .par_chunks_mut(v * MAT)
+            .zip(blocks.par_iter())
+            .for_each(|(out, joints)| blend_matrices(joints, skin, out));
         b
     }
 
     /// The posed body of `(motion, frame)`, built once and cached.
-    pub fn body(&self, avatar: &Avatar, motion: usize, frame: usize) -> Result<Arc<PosedBody>, TrainError> {
-        let m = self.motions.get(motion).ok_or_else(|| TrainError::Data(format!("no motion {motion}")))?;
+    pub fn body(
+        &self,
+        avatar: &Avatar,
+        motion: usize,
+        frame: usize,
+    ) -> Result<Arc<PosedBody>, TrainError> {
+        let m = self
+            .motions
+            .get(motion)
+            .ok_or_else(|| TrainError::Data(format!("no motion {motion}")))?;
         let f = frame.min(m.frames().saturating_sub(1));
         let Some(cell) = m.bodies.get(f) else {
-            return Err(TrainError::Data(format!("motion '{}' has no frame {f}", m.name)));
+            return Err(TrainError::Data(format!(
+                "motion '{}' has no frame {f}",
+                m.name
+            )));
         };
         if let Some(b) = cell.get() {
             return Ok(b.clone());
@@ -194,7 +228,11 @@ impl Dataset {
 /// Writes `Σ_k w_k M_{j_k}` for every vertex of `skin` into `out` (`[V, 12]`), from joint
 /// matrices `joints` (`[J_all, 12]`). Joints outside the block contribute nothing.
 pub fn blend_matrices(joints: &[f32], skin: &SkinWeights, out: &mut [f32]) {
-    for ((o, js), ws) in out.chunks_exact_mut(MAT).zip(&skin.joints).zip(&skin.weights) {
+    for ((o, js), ws) in out
+        .chunks_exact_mut(MAT)
+        .zip(&skin.joints)
+        .zip(&skin.weights)
+    {
         o.fill(0.0);
         for k in 0..4 {
             let w = ws[k];

@@ -43,18 +43,28 @@ pub fn evaluate(trained: &TrainedModel, split: Split, w: f32) -> Result<EvalRepo
     let scene = &trained.scene;
     let fps = trained.meta.train.fps;
     let device = device_for(BackendKind::Cpu, false);
-    let terms = PhysicsTerms::new(&scene.garment, &trained.meta.fabric, &trained.meta.effects, &device)?;
+    let terms = PhysicsTerms::new(
+        &scene.garment,
+        &trained.meta.fabric,
+        &trained.meta.effects,
+        &device,
+    )?;
     let mut motions = Vec::new();
     let mut all = Vec::new();
     for motion in scene.motions_in(split) {
-        let motion = motion.resample(fps).map_err(crate::model::ModelError::from)?;
+        let motion = motion
+            .resample(fps)
+            .map_err(crate::model::ModelError::from)?;
         let mut engine = InferenceEngine::from_scene(
             trained.weights.clone(),
             &scene.avatar,
             &scene.garment,
             &trained.meta.descriptors,
             fps,
-            InferenceOptions { skin_body: false, ..Default::default() },
+            InferenceOptions {
+                skin_body: false,
+                ..Default::default()
+            },
         )?;
         let mut frames = Vec::with_capacity(motion.frames.len());
         for pose in &motion.frames {
@@ -62,11 +72,20 @@ pub fn evaluate(trained: &TrainedModel, split: Split, w: f32) -> Result<EvalRepo
             frames.push(engine.garment_positions().to_vec());
         }
         let bodies: Option<Vec<Arc<PosedBody>>> = match trained.meta.effects.collision {
-            true => Some(motion.frames.iter().map(|p| PosedBody::from_avatar(&scene.avatar, p).map(Arc::new)).collect::<Result<_, _>>()?),
+            true => Some(
+                motion
+                    .frames
+                    .iter()
+                    .map(|p| PosedBody::from_avatar(&scene.avatar, p).map(Arc::new))
+                    .collect::<Result<_, _>>()?,
+            ),
             false => None,
         };
         let per_frame = sequence_metrics(&terms, &frames, bodies.as_deref(), 1.0 / fps)?;
-        let records: Vec<MetricRecord> = per_frame.iter().map(|m| MetricRecord::from_metrics(trained.meta.fabric.cloth_model, m, 0.0)).collect();
+        let records: Vec<MetricRecord> = per_frame
+            .iter()
+            .map(|m| MetricRecord::from_metrics(trained.meta.fabric.cloth_model, m, 0.0))
+            .collect();
         let mut mean = MetricRecord::mean(&records);
         // Inertia exists from the third frame on: average it over those frames only.
         let with_inertia: Vec<f64> = per_frame.iter().filter_map(|m| m.inertia_j).collect();
@@ -76,12 +95,23 @@ pub fn evaluate(trained: &TrainedModel, split: Split, w: f32) -> Result<EvalRepo
             r.inertia = mean.inertia;
             r
         }));
-        motions.push(MotionEval { name: motion.name.clone(), frames: frames.len(), metrics: mean });
+        motions.push(MotionEval {
+            name: motion.name.clone(),
+            frames: frames.len(),
+            metrics: mean,
+        });
     }
     if motions.is_empty() {
-        return Err(TrainError::Data(format!("the scene has no motion in the {split:?} split")));
+        return Err(TrainError::Data(format!(
+            "the scene has no motion in the {split:?} split"
+        )));
     }
     let mut mean = MetricRecord::mean(&all);
     mean.step = trained.step;
-    Ok(EvalReport { split, w, motions, mean })
+    Ok(EvalReport {
+        split,
+        w,
+        motions,
+        mean,
+    })
 }

@@ -170,7 +170,10 @@ impl TrainerHandle {
 
     /// Like [`Self::spawn_session`], but builds the session on the trainer thread with
     /// `prepare` (which may take seconds); its error ends the run with `Finished(Err)`.
-    pub fn spawn_with<S, F>(prepare: F, notify: Option<Arc<dyn Fn() + Send + Sync>>) -> std::io::Result<Self>
+    pub fn spawn_with<S, F>(
+        prepare: F,
+        notify: Option<Arc<dyn Fn() + Send + Sync>>,
+    ) -> std::io::Result<Self>
     where
         S: Session + 'static,
         F: FnOnce() -> Result<(S, LoopConfig), String> + Send + 'static,
@@ -179,12 +182,21 @@ impl TrainerHandle {
         let (ev_tx, ev_rx) = std::sync::mpsc::sync_channel(EVENT_CAPACITY);
         let stop = Arc::new(AtomicBool::new(false));
         let stop_flag = stop.clone();
-        let thread = std::thread::Builder::new().name("neural-cloth-trainer".into()).spawn(move || {
-            let emit = Emitter { tx: ev_tx, notify };
-            let result = prepare().and_then(|(mut session, config)| run_loop(&mut session, config, &cmd_rx, &stop_flag, &emit));
-            emit.send(TrainEvent::Finished(result));
-        })?;
-        Ok(Self { commands: cmd_tx, events: ev_rx, stop, thread: Some(thread) })
+        let thread = std::thread::Builder::new()
+            .name("neural-cloth-trainer".into())
+            .spawn(move || {
+                let emit = Emitter { tx: ev_tx, notify };
+                let result = prepare().and_then(|(mut session, config)| {
+                    run_loop(&mut session, config, &cmd_rx, &stop_flag, &emit)
+                });
+                emit.send(TrainEvent::Finished(result));
+            })?;
+        Ok(Self {
+            commands: cmd_tx,
+            events: ev_rx,
+            stop,
+            thread: Some(thread),
+        })
     }
 
     /// Sends a command without blocking; returns false when the channel is full or closed.
@@ -275,7 +287,10 @@ fn run_loop<S: Session>(
     let mut rollbacks = 0u32;
     let mut trained_secs = history.train.last().map(|r| r.wall_secs).unwrap_or(0.0);
     let mut paused = false;
-    emit.send(TrainEvent::Started { run_dir: config.run_dir.clone(), step });
+    emit.send(TrainEvent::Started {
+        run_dir: config.run_dir.clone(),
+        step,
+    });
     'outer: loop {
         // Commands first, so pause/stop act within one step.
         loop {
@@ -316,7 +331,9 @@ fn run_loop<S: Session>(
         if stop.load(Ordering::Relaxed) {
             break;
         }
-        if config.max_steps.is_some_and(|m| step >= m) || config.max_secs.is_some_and(|m| trained_secs >= m) {
+        if config.max_steps.is_some_and(|m| step >= m)
+            || config.max_secs.is_some_and(|m| trained_secs >= m)
+        {
             break;
         }
         let started = Instant::now();
@@ -324,7 +341,8 @@ fn run_loop<S: Session>(
         trained_secs += started.elapsed().as_secs_f64();
         // Reading every weight back costs a copy of the model, so weights are checked on the
         // snapshot and checkpoint cadence; a non-finite weight shows in the loss soon anyway.
-        let check_weights = (step + 1) % config.snapshot_every == 0 || (step + 1) % config.checkpoint_every == 0;
+        let check_weights = (step + 1).is_multiple_of(config.snapshot_every)
+            || (step + 1).is_multiple_of(config.checkpoint_every);
         let record = match result {
             Ok(mut r) if r.is_finite() && (!check_weights || session.weights_finite()) => {
                 step += 1;
@@ -336,20 +354,28 @@ fn run_loop<S: Session>(
                 // Divergence (or a failed step): go back to the last good weights, lower the rate.
                 rollbacks += 1;
                 if rollbacks > config.max_rollbacks {
-                    return Err(format!("training diverged {rollbacks} times; last at step {step}"));
+                    return Err(format!(
+                        "training diverged {rollbacks} times; last at step {step}"
+                    ));
                 }
-                let restored = session.restore_last_checkpoint().map_err(|e| format!("diverged at step {step} and could not roll back: {e}"))?;
+                let restored = session
+                    .restore_last_checkpoint()
+                    .map_err(|e| format!("diverged at step {step} and could not roll back: {e}"))?;
                 let lr = session.learning_rate() * 0.5;
                 session.set_learning_rate(lr);
                 history.truncate_after(restored);
-                emit.send(TrainEvent::RolledBack { diverged_at: step + 1, restored_step: restored, learning_rate: lr });
+                emit.send(TrainEvent::RolledBack {
+                    diverged_at: step + 1,
+                    restored_step: restored,
+                    learning_rate: lr,
+                });
                 step = restored;
                 continue;
             }
         };
         history.train.push(record);
         emit.offer(TrainEvent::Step(record));
-        if step % config.validate_every == 0 {
+        if step.is_multiple_of(config.validate_every) {
             let started = Instant::now();
             let mut v = session.validate()?;
             trained_secs += started.elapsed().as_secs_f64();
@@ -358,26 +384,33 @@ fn run_loop<S: Session>(
             history.validation.push(v);
             emit.send(TrainEvent::Validation(v));
         }
-        if step % config.snapshot_every == 0 {
-            if let Ok(weights) = session.snapshot() {
-                emit.offer(TrainEvent::Snapshot { step, weights: Arc::new(weights) });
-            }
+        if step.is_multiple_of(config.snapshot_every)
+            && let Ok(weights) = session.snapshot()
+        {
+            emit.offer(TrainEvent::Snapshot {
+                step,
+                weights: Arc::new(weights),
+            });
         }
-        if step % config.checkpoint_every == 0 {
+        if step.is_multiple_of(config.checkpoint_every) {
             let path = session.checkpoint(step, &history)?;
             emit.send(TrainEvent::Checkpoint { step, path });
         }
     }
-    if history.validation.last().is_none_or(|v| v.step != step) && step > 0 {
-        if let Ok(mut v) = session.validate() {
-            v.step = step;
-            v.wall_secs = trained_secs;
-            history.validation.push(v);
-            emit.send(TrainEvent::Validation(v));
-        }
+    if history.validation.last().is_none_or(|v| v.step != step)
+        && step > 0
+        && let Ok(mut v) = session.validate()
+    {
+        v.step = step;
+        v.wall_secs = trained_secs;
+        history.validation.push(v);
+        emit.send(TrainEvent::Validation(v));
     }
     if let Ok(weights) = session.snapshot() {
-        emit.send(TrainEvent::Snapshot { step, weights: Arc::new(weights) });
+        emit.send(TrainEvent::Snapshot {
+            step,
+            weights: Arc::new(weights),
+        });
     }
     let path = session.checkpoint(step, &history)?;
     emit.send(TrainEvent::Checkpoint { step, path });

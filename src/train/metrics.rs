@@ -29,9 +29,17 @@ pub struct MetricRecord {
 impl MetricRecord {
     /// True when every value is finite.
     pub fn is_finite(&self) -> bool {
-        [self.wall_secs, self.loss, self.strain, self.bending, self.collision_pct, self.gravity, self.inertia]
-            .iter()
-            .all(|v| v.is_finite())
+        [
+            self.wall_secs,
+            self.loss,
+            self.strain,
+            self.bending,
+            self.collision_pct,
+            self.gravity,
+            self.inertia,
+        ]
+        .iter()
+        .all(|v| v.is_finite())
     }
 
     /// `(name, value)` pairs of the §4.2 metrics, in display order.

@@ -19,10 +19,10 @@ pub mod session;
 pub mod trained;
 
 pub use config::{BackendKind, InertiaMode, TrainConfig};
+pub use eval::{EvalReport, evaluate};
 pub use handle::{RunSummary, TrainCommand, TrainEvent, TrainerHandle};
 pub use metrics::{MetricHistory, MetricRecord};
 pub use run_dir::{RunDir, RunMeta};
-pub use eval::{EvalReport, evaluate};
 pub use trained::{TrainedModel, load_trained};
 
 use std::path::{Path, PathBuf};
@@ -78,7 +78,10 @@ pub enum TrainError {
 impl TrainError {
     /// Wraps an I/O error with its path.
     pub fn io(source: std::io::Error, path: &Path) -> Self {
-        Self::File { source, path: path.to_path_buf() }
+        Self::File {
+            source,
+            path: path.to_path_buf(),
+        }
     }
 }
 
@@ -118,9 +121,13 @@ impl Trainer {
     /// Starts a run on the named thread `neural-cloth-trainer`. Preparation (data, model) runs
     /// on that thread too, so this returns at once; a failed preparation arrives as
     /// `TrainEvent::Finished(Err(..))`. `notify` is called after each event.
-    pub fn spawn(setup: TrainSetup, notify: Option<Arc<dyn Fn() + Send + Sync>>) -> Result<TrainerHandle, TrainError> {
+    pub fn spawn(
+        setup: TrainSetup,
+        notify: Option<Arc<dyn Fn() + Send + Sync>>,
+    ) -> Result<TrainerHandle, TrainError> {
         setup.train.validate()?;
-        TrainerHandle::spawn_with(move || prepare(setup).map_err(|e| e.to_string()), notify).map_err(|e| TrainError::io(e, Path::new("trainer thread")))
+        TrainerHandle::spawn_with(move || prepare(setup).map_err(|e| e.to_string()), notify)
+            .map_err(|e| TrainError::io(e, Path::new("trainer thread")))
     }
 }
 
@@ -136,7 +143,15 @@ pub fn device_for(backend: BackendKind, autodiff: bool) -> Device {
 /// Builds the session and loop settings of `setup` (synchronously; used by [`Trainer::spawn`]
 /// on the trainer thread and by tests).
 pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainError> {
-    let TrainSetup { scene, scene_config, train, mut model, descriptors, fabric, location } = setup;
+    let TrainSetup {
+        scene,
+        scene_config,
+        train,
+        mut model,
+        descriptors,
+        fabric,
+        location,
+    } = setup;
     train.validate()?;
     let fabric = match fabric {
         Some(f) => f,
@@ -150,11 +165,25 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
     device.seed(train.seed);
     let avatar = Arc::new(scene.avatar);
     let garment = Arc::new(scene.garment);
-    let train_data = Dataset::new(&avatar, &scene.motions, Split::Train, train.fps, &descriptors, train.mirror_poses)?;
+    let train_data = Dataset::new(
+        &avatar,
+        &scene.motions,
+        Split::Train,
+        train.fps,
+        &descriptors,
+        train.mirror_poses,
+    )?;
     if train_data.is_empty() {
         return Err(TrainError::Data("no motion in the train split".into()));
     }
-    let validation = Dataset::new(&avatar, &scene.motions, Split::Validation, train.fps, &descriptors, false)?;
+    let validation = Dataset::new(
+        &avatar,
+        &scene.motions,
+        Split::Validation,
+        train.fps,
+        &descriptors,
+        false,
+    )?;
     let (run, resume) = match &location {
         RunLocation::NewUnder(parent) => (RunDir::fresh_under(parent)?, false),
         RunLocation::At(dir) => (RunDir::create(dir)?, false),
@@ -163,7 +192,9 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
     let fingerprint = garment_fingerprint(&garment);
     if resume {
         let meta = run.meta()?;
-        if meta.garment_fingerprint != fingerprint || meta.garment_vertices != garment.vertex_count() {
+        if meta.garment_fingerprint != fingerprint
+            || meta.garment_vertices != garment.vertex_count()
+        {
             return Err(TrainError::Checkpoint(format!(
                 "the run was trained on garment '{}' ({} vertices), not on '{}' ({} vertices): {}",
                 meta.garment_name,
@@ -191,7 +222,9 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
             garment_fingerprint: fingerprint,
             garment_name: garment.name.clone(),
         };
-        let scene_toml = scene_config.to_toml_string().map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+        let scene_toml = scene_config
+            .to_toml_string()
+            .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
         run.write_meta(&meta, &scene_toml)?;
     }
     let run_root = run.root.clone();
@@ -209,13 +242,11 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
     });
     let mut history = MetricHistory::default();
     let mut start_step = 0;
-    if resume {
-        if let Some(step) = session.run_dir().latest_step() {
-            let state = session.load_checkpoint(step)?;
-            start_step = state.step;
-            history = session.run_dir().history();
-            history.truncate_after(start_step);
-        }
+    if resume && let Some(step) = session.run_dir().latest_step() {
+        let state = session.load_checkpoint(step)?;
+        start_step = state.step;
+        history = session.run_dir().history();
+        history.truncate_after(start_step);
     }
     let loop_config = LoopConfig {
         run_dir: run_root,

@@ -94,23 +94,40 @@ impl RunDir {
     /// A run directory at `root` (created if missing).
     pub fn create(root: &Path) -> Result<Self, TrainError> {
         std::fs::create_dir_all(root.join("checkpoints")).map_err(|e| TrainError::io(e, root))?;
-        Ok(Self { root: root.to_path_buf() })
+        Ok(Self {
+            root: root.to_path_buf(),
+        })
     }
 
     /// An existing run directory.
     pub fn open(root: &Path) -> Result<Self, TrainError> {
         if !root.join("run.json").is_file() {
-            return Err(TrainError::Checkpoint(format!("not a run directory (no run.json): {}", root.display())));
+            return Err(TrainError::Checkpoint(format!(
+                "not a run directory (no run.json): {}",
+                root.display()
+            )));
         }
-        Ok(Self { root: root.to_path_buf() })
+        Ok(Self {
+            root: root.to_path_buf(),
+        })
     }
 
     /// A fresh, timestamped run folder under `parent`.
     pub fn fresh_under(parent: &Path) -> Result<Self, TrainError> {
-        let stamp = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
+        let stamp = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_secs())
+            .unwrap_or(0);
         let mut k = 0;
         loop {
-            let root = parent.join(format!("run-{stamp}{}", if k == 0 { String::new() } else { format!("-{k}") }));
+            let root = parent.join(format!(
+                "run-{stamp}{}",
+                if k == 0 {
+                    String::new()
+                } else {
+                    format!("-{k}")
+                }
+            ));
             if !root.exists() {
                 return Self::create(&root);
             }
@@ -120,7 +137,8 @@ impl RunDir {
 
     /// Writes `run.json` and `scene.toml`.
     pub fn write_meta(&self, meta: &RunMeta, scene_toml: &str) -> Result<(), TrainError> {
-        let json = serde_json::to_vec_pretty(meta).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+        let json =
+            serde_json::to_vec_pretty(meta).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
         write_atomic(&self.root.join("run.json"), &json)?;
         write_atomic(&self.root.join("scene.toml"), scene_toml.as_bytes())?;
         Ok(())
@@ -130,7 +148,8 @@ impl RunDir {
     pub fn meta(&self) -> Result<RunMeta, TrainError> {
         let path = self.root.join("run.json");
         let bytes = std::fs::read(&path).map_err(|e| TrainError::io(e, &path))?;
-        serde_json::from_slice(&bytes).map_err(|e| TrainError::Checkpoint(format!("{e}: {}", path.display())))
+        serde_json::from_slice(&bytes)
+            .map_err(|e| TrainError::Checkpoint(format!("{e}: {}", path.display())))
     }
 
     /// The scene description text.
@@ -141,7 +160,9 @@ impl RunDir {
 
     /// Folder of the checkpoint of `step`.
     pub fn checkpoint_path(&self, step: u64) -> PathBuf {
-        self.root.join("checkpoints").join(format!("step-{step:08}"))
+        self.root
+            .join("checkpoints")
+            .join(format!("step-{step:08}"))
     }
 
     /// Step of the newest complete checkpoint, if any.
@@ -149,7 +170,10 @@ impl RunDir {
         let text = std::fs::read_to_string(self.root.join("latest.json")).ok()?;
         let v: serde_json::Value = serde_json::from_str(&text).ok()?;
         let step = v.get("step")?.as_u64()?;
-        self.checkpoint_path(step).join("model.bpk").is_file().then_some(step)
+        self.checkpoint_path(step)
+            .join("model.bpk")
+            .is_file()
+            .then_some(step)
     }
 
     /// Writes a checkpoint folder atomically, then the history and `latest.json`, then prunes
@@ -166,40 +190,56 @@ impl RunDir {
         let dir = AtomicDir::create(&path)?;
         write_atomic(&dir.temp_path().join("model.bpk"), model_bytes)?;
         write_atomic(&dir.temp_path().join("optimizer.bpk"), optimizer_bytes)?;
-        let state_json = serde_json::to_vec_pretty(&state).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+        let state_json =
+            serde_json::to_vec_pretty(&state).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
         write_atomic(&dir.temp_path().join("state.json"), &state_json)?;
         let path = dir.commit()?;
-        let history_json = serde_json::to_vec(history).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+        let history_json =
+            serde_json::to_vec(history).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
         write_atomic(&self.root.join("metrics.json"), &history_json)?;
-        write_atomic(&self.root.join("latest.json"), format!("{{\"step\": {}}}\n", state.step).as_bytes())?;
+        write_atomic(
+            &self.root.join("latest.json"),
+            format!("{{\"step\": {}}}\n", state.step).as_bytes(),
+        )?;
         self.prune();
         Ok(path)
     }
 
     /// Reads the model bytes, optimiser bytes and state of checkpoint `step`.
-    pub fn read_checkpoint(&self, step: u64) -> Result<(Vec<u8>, Vec<u8>, CheckpointState), TrainError> {
+    pub fn read_checkpoint(
+        &self,
+        step: u64,
+    ) -> Result<(Vec<u8>, Vec<u8>, CheckpointState), TrainError> {
         let dir = self.checkpoint_path(step);
         let read = |name: &str| {
             let p = dir.join(name);
             std::fs::read(&p).map_err(|e| TrainError::io(e, &p))
         };
-        let state: CheckpointState = serde_json::from_slice(&read("state.json")?)
-            .map_err(|e| TrainError::Checkpoint(format!("{e}: {}", dir.join("state.json").display())))?;
+        let state: CheckpointState = serde_json::from_slice(&read("state.json")?).map_err(|e| {
+            TrainError::Checkpoint(format!("{e}: {}", dir.join("state.json").display()))
+        })?;
         Ok((read("model.bpk")?, read("optimizer.bpk")?, state))
     }
 
     /// The metric history saved with the newest checkpoint (empty when none).
     pub fn history(&self) -> MetricHistory {
-        std::fs::read(self.root.join("metrics.json")).ok().and_then(|b| serde_json::from_slice(&b).ok()).unwrap_or_default()
+        std::fs::read(self.root.join("metrics.json"))
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .unwrap_or_default()
     }
 
     fn prune(&self) {
-        let Ok(entries) = std::fs::read_dir(self.root.join("checkpoints")) else { return };
+        let Ok(entries) = std::fs::read_dir(self.root.join("checkpoints")) else {
+            return;
+        };
         let mut steps: Vec<(u64, PathBuf)> = entries
             .filter_map(|e| e.ok())
             .filter_map(|e| {
                 let name = e.file_name().to_string_lossy().into_owned();
-                name.strip_prefix("step-").and_then(|s| s.parse().ok()).map(|s| (s, e.path()))
+                name.strip_prefix("step-")
+                    .and_then(|s| s.parse().ok())
+                    .map(|s| (s, e.path()))
             })
             .collect();
         steps.sort_by_key(|(s, _)| std::cmp::Reverse(*s));

@@ -11,8 +11,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use burn::module::Module;
-use burn::optim::{AdamConfig, GradientsParams};
 use burn::optim::ModuleOptimizer;
+use burn::optim::{AdamConfig, GradientsParams};
 use burn::tensor::{Bytes, Device, Int, Tensor, TensorData};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
@@ -101,8 +101,13 @@ impl NeuralSession {
     /// Restores model, optimiser and learning rate from checkpoint `step`.
     pub fn load_checkpoint(&mut self, step: u64) -> Result<CheckpointState, TrainError> {
         let (model_bytes, optim_bytes, state) = self.run.read_checkpoint(step)?;
-        let record = burn::store::ModuleRecord::from_bytes(Bytes::from_bytes_vec(model_bytes)).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
-        self.model = self.model.clone().try_load_record(record).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+        let record = burn::store::ModuleRecord::from_bytes(Bytes::from_bytes_vec(model_bytes))
+            .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+        self.model = self
+            .model
+            .clone()
+            .try_load_record(record)
+            .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
         self.optim = AdamConfig::new()
             .init()
             .from_bytes(Bytes::from_bytes_vec(optim_bytes))
@@ -131,7 +136,8 @@ impl NeuralSession {
         let (b, t) = (batch.size, batch.frames);
         let j = self.train.input_joints;
         let statics = self.tensor4(batch.static_desc.clone(), [b, t, j, 9]);
-        let dynamics = (self.model.kind() != crate::model::EncoderKind::StaticOnly).then(|| self.tensor4(batch.dynamic_desc.clone(), [b, t, j, 12]));
+        let dynamics = (self.model.kind() != crate::model::EncoderKind::StaticOnly)
+            .then(|| self.tensor4(batch.dynamic_desc.clone(), [b, t, j, 12]));
         let offsets = if augment == 0 || !self.model.has_dynamic_branch() {
             self.model.forward_last(statics, dynamics, 1.0, 3)
         } else {
@@ -141,9 +147,13 @@ impl NeuralSession {
                     let kept = b - augment;
                     let mut perm: Vec<i64> = (0..b as i64).collect();
                     perm.shuffle(&mut self.rng);
-                    let picks = Tensor::<1, Int>::from_data(TensorData::new(perm[..augment].to_vec(), [augment]), &self.device);
+                    let picks = Tensor::<1, Int>::from_data(
+                        TensorData::new(perm[..augment].to_vec(), [augment]),
+                        &self.device,
+                    );
                     let normal = z_s.clone().narrow(0, 0, kept) + z_d.clone().narrow(0, 0, kept);
-                    let shuffled = z_s.narrow(0, kept, augment).detach() + z_d.select(0, picks).detach();
+                    let shuffled =
+                        z_s.narrow(0, kept, augment).detach() + z_d.select(0, picks).detach();
                     Tensor::cat(vec![normal, shuffled], 0)
                 }
                 None => z_s,
@@ -159,7 +169,11 @@ impl NeuralSession {
         if !self.terms.effects().collision {
             return Ok(None);
         }
-        let bodies = batch.windows.iter().map(|&(m, f)| data.body(&self.avatar, m, f)).collect::<Result<Vec<_>, _>>()?;
+        let bodies = batch
+            .windows
+            .iter()
+            .map(|&(m, f)| data.body(&self.avatar, m, f))
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(Some(BodyBatch::new(bodies)))
     }
 
@@ -183,7 +197,9 @@ impl Session for NeuralSession {
     fn step(&mut self) -> Result<MetricRecord, String> {
         let b = self.config.batch_size;
         let windows = self.train.sample_windows(b, &mut self.rng);
-        let batch = self.train.batch(&windows, self.window_frames(), &self.garment.skin);
+        let batch = self
+            .train
+            .batch(&windows, self.window_frames(), &self.garment.skin);
         let augment = if self.terms.effects().dynamics && b >= 2 {
             ((self.config.augmentation_fraction * b as f32).round() as usize).min(b - 1)
         } else {
@@ -191,19 +207,40 @@ impl Session for NeuralSession {
         };
         let x = self.predict(&batch, augment);
         let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
-        let bodies = self.bodies(&self.train, &batch).map_err(|e| e.to_string())?;
+        let bodies = self
+            .bodies(&self.train, &batch)
+            .map_err(|e| e.to_string())?;
         let contacts = match &bodies {
-            Some(bodies) => Some(self.terms.contacts(&x_t, bodies).map_err(|e| e.to_string())?),
+            Some(bodies) => Some(
+                self.terms
+                    .contacts(&x_t, bodies)
+                    .map_err(|e| e.to_string())?,
+            ),
             None => None,
         };
-        let losses = self.terms.static_losses_with(&x_t, contacts.as_ref()).map_err(|e| e.to_string())?;
-        let mut total = losses.total().unwrap_or_else(|| Tensor::zeros([1], &self.device));
+        let losses = self
+            .terms
+            .static_losses_with(&x_t, contacts.as_ref())
+            .map_err(|e| e.to_string())?;
+        let mut total = losses
+            .total()
+            .unwrap_or_else(|| Tensor::zeros([1], &self.device));
         if self.terms.effects().dynamics {
             let kept = b - augment;
-            let (xt, xt1, xt2) = (x_t.clone().narrow(0, 0, kept), x_t1.clone().narrow(0, 0, kept), x_t2.clone().narrow(0, 0, kept));
+            let (xt, xt1, xt2) = (
+                x_t.clone().narrow(0, 0, kept),
+                x_t1.clone().narrow(0, 0, kept),
+                x_t2.clone().narrow(0, 0, kept),
+            );
             let inertia = match self.config.inertia_mode {
                 InertiaMode::Ours => self.terms.inertia(&xt, &xt1, &xt2, self.config.dt_secs()),
-                InertiaMode::Snug => super::losses::inertia_through_past(&self.terms, &xt, &xt1, &xt2, self.config.dt_secs()),
+                InertiaMode::Snug => super::losses::inertia_through_past(
+                    &self.terms,
+                    &xt,
+                    &xt1,
+                    &xt2,
+                    self.config.dt_secs(),
+                ),
             };
             if let Some(inertia) = inertia {
                 total = total + inertia;
@@ -212,23 +249,36 @@ impl Session for NeuralSession {
         let loss = total.clone().into_scalar::<f64>();
         let grads = total.backward();
         let grads = GradientsParams::from_grads(grads, &self.model);
-        self.model = self.optim.step(self.learning_rate, self.model.clone(), grads);
+        self.model = self
+            .optim
+            .step(self.learning_rate, self.model.clone(), grads);
         // Per-step metrics on the first few windows only: they are a noisy monitor anyway, and
         // the full batch would cost a sizeable share of the step (validation uses every window).
         let n = b.min(STEP_METRIC_WINDOWS);
         let head = |t: &Tensor<3>| t.clone().detach().narrow(0, 0, n);
-        let history = History { x_t1: head(&x_t1), x_t2: head(&x_t2), dt_secs: self.config.dt_secs() };
+        let history = History {
+            x_t1: head(&x_t1),
+            x_t2: head(&x_t2),
+            dt_secs: self.config.dt_secs(),
+        };
         let contacts = contacts.map(|c| crate::physics::Contacts {
             points: c.points.narrow(0, 0, n),
             normals: c.normals.narrow(0, 0, n),
             distances_m: c.distances_m[..n * self.garment.vertex_count()].to_vec(),
         });
-        let metrics = self.terms.metrics(&head(&x_t), contacts.as_ref(), Some(&history)).map_err(|e| e.to_string())?;
+        let metrics = self
+            .terms
+            .metrics(&head(&x_t), contacts.as_ref(), Some(&history))
+            .map_err(|e| e.to_string())?;
         Ok(self.record(&metrics, loss))
     }
 
     fn validate(&mut self) -> Result<MetricRecord, String> {
-        let data = if self.validation.is_empty() { &self.train } else { &self.validation };
+        let data = if self.validation.is_empty() {
+            &self.train
+        } else {
+            &self.validation
+        };
         let windows = data.even_windows(VALIDATION_WINDOWS);
         if windows.is_empty() {
             return Err("no validation frames".into());
@@ -238,21 +288,43 @@ impl Session for NeuralSession {
         let x = self.predict(&batch, 0).detach();
         let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
         let contacts = match &bodies {
-            Some(bodies) => Some(self.terms.contacts(&x_t, bodies).map_err(|e| e.to_string())?),
+            Some(bodies) => Some(
+                self.terms
+                    .contacts(&x_t, bodies)
+                    .map_err(|e| e.to_string())?,
+            ),
             None => None,
         };
-        let losses = self.terms.static_losses_with(&x_t, contacts.as_ref()).map_err(|e| e.to_string())?;
-        let mut loss = losses.total().map(|t| t.into_scalar::<f64>()).unwrap_or(0.0);
-        if let Some(i) = self.terms.inertia(&x_t, &x_t1, &x_t2, self.config.dt_secs()) {
+        let losses = self
+            .terms
+            .static_losses_with(&x_t, contacts.as_ref())
+            .map_err(|e| e.to_string())?;
+        let mut loss = losses
+            .total()
+            .map(|t| t.into_scalar::<f64>())
+            .unwrap_or(0.0);
+        if let Some(i) = self
+            .terms
+            .inertia(&x_t, &x_t1, &x_t2, self.config.dt_secs())
+        {
             loss += i.into_scalar::<f64>();
         }
-        let history = History { x_t1, x_t2, dt_secs: self.config.dt_secs() };
-        let metrics = self.terms.metrics(&x_t, contacts.as_ref(), Some(&history)).map_err(|e| e.to_string())?;
+        let history = History {
+            x_t1,
+            x_t2,
+            dt_secs: self.config.dt_secs(),
+        };
+        let metrics = self
+            .terms
+            .metrics(&x_t, contacts.as_ref(), Some(&history))
+            .map_err(|e| e.to_string())?;
         Ok(self.record(&metrics, loss))
     }
 
     fn weights_finite(&self) -> bool {
-        InferenceWeights::from_module(&self.model).map(|w| w.validate().is_ok()).unwrap_or(false)
+        InferenceWeights::from_module(&self.model)
+            .map(|w| w.validate().is_ok())
+            .unwrap_or(false)
     }
 
     fn snapshot(&self) -> Result<InferenceWeights, String> {
@@ -260,10 +332,20 @@ impl Session for NeuralSession {
     }
 
     fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, String> {
-        let model_bytes = self.model.clone().into_record().into_bytes().map_err(|e| e.to_string())?;
+        let model_bytes = self
+            .model
+            .clone()
+            .into_record()
+            .into_bytes()
+            .map_err(|e| e.to_string())?;
         let optim_bytes = self.optim.into_bytes().map_err(|e| e.to_string())?;
-        let state = CheckpointState { step, learning_rate: self.learning_rate };
-        self.run.write_checkpoint(state, &model_bytes, &optim_bytes, history).map_err(|e| e.to_string())
+        let state = CheckpointState {
+            step,
+            learning_rate: self.learning_rate,
+        };
+        self.run
+            .write_checkpoint(state, &model_bytes, &optim_bytes, history)
+            .map_err(|e| e.to_string())
     }
 
     fn restore_last_checkpoint(&mut self) -> Result<u64, String> {
@@ -282,12 +364,16 @@ impl Session for NeuralSession {
 
     fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), String> {
         let effects = *self.terms.effects();
-        self.terms = PhysicsTerms::new(&self.garment, &fabric, &effects, &self.device).map_err(|e| e.to_string())?;
+        self.terms = PhysicsTerms::new(&self.garment, &fabric, &effects, &self.device)
+            .map_err(|e| e.to_string())?;
         Ok(())
     }
 
     fn set_window(&mut self, window_secs: f32) -> Result<(), String> {
-        let next = TrainConfig { window_secs, ..self.config.clone() };
+        let next = TrainConfig {
+            window_secs,
+            ..self.config.clone()
+        };
         next.validate().map_err(|e| e.to_string())?;
         self.config = next;
         Ok(())

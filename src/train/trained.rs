@@ -37,12 +37,17 @@ pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
         run_dir.to_path_buf()
     } else {
         // A checkpoint folder: RUN/checkpoints/step-N.
-        run_dir.parent().and_then(|p| p.parent()).map(Path::to_path_buf).unwrap_or_else(|| run_dir.to_path_buf())
+        run_dir
+            .parent()
+            .and_then(|p| p.parent())
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| run_dir.to_path_buf())
     };
     let run = RunDir::open(&root)?;
     let meta = run.meta()?;
     let scene_path = root.join("scene.toml");
-    let config = SceneConfig::from_toml_str(&run.scene_toml()?).map_err(|e| TrainError::Checkpoint(format!("{e}: {}", scene_path.display())))?;
+    let config = SceneConfig::from_toml_str(&run.scene_toml()?)
+        .map_err(|e| TrainError::Checkpoint(format!("{e}: {}", scene_path.display())))?;
     let scene = load_scene(&config, &root, &scene_path)?.scene;
     if garment_fingerprint(&scene.garment) != meta.garment_fingerprint {
         return Err(TrainError::Checkpoint(format!(
@@ -51,12 +56,26 @@ pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
             root.display()
         )));
     }
-    let step = run.latest_step().ok_or_else(|| TrainError::Checkpoint(format!("no checkpoint in {}", root.display())))?;
+    let step = run
+        .latest_step()
+        .ok_or_else(|| TrainError::Checkpoint(format!("no checkpoint in {}", root.display())))?;
     let (model_bytes, _, _) = run.read_checkpoint(step)?;
     let device = device_for(BackendKind::Cpu, false);
-    let model = meta.model.init(meta.input_joints, meta.garment_vertices, &device)?;
-    let record = burn::store::ModuleRecord::from_bytes(Bytes::from_bytes_vec(model_bytes)).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
-    let model = model.try_load_record(record).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+    let model = meta
+        .model
+        .init(meta.input_joints, meta.garment_vertices, &device)?;
+    let record = burn::store::ModuleRecord::from_bytes(Bytes::from_bytes_vec(model_bytes))
+        .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+    let model = model
+        .try_load_record(record)
+        .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
     let weights = InferenceWeights::from_module(&model)?;
-    Ok(TrainedModel { meta, scene, model, weights, step, run })
+    Ok(TrainedModel {
+        meta,
+        scene,
+        model,
+        weights,
+        step,
+        run,
+    })
 }

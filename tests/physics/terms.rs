@@ -124,4 +124,3 @@ fn metrics_of_rest_stretched_and_moving_meshes() {
     assert!(seq.windows(2).all(|w| w[1].gravity_j < w[0].gravity_j));
     assert!(seq[2].inertia_j.unwrap().abs() < 1e-6);
 }
-

@@ -17,7 +17,10 @@ pub struct AtomicFile {
 
 /// The hidden temporary path used for `path` (same folder, so the rename is atomic).
 pub fn temp_path_for(path: &Path) -> PathBuf {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
 }
 
@@ -26,13 +29,20 @@ impl AtomicFile {
     pub fn create(path: &Path) -> Result<Self, ExportError> {
         let temp_path = temp_path_for(path);
         let file = File::create(&temp_path).map_err(|e| ExportError::io(e, path))?;
-        Ok(Self { final_path: path.to_path_buf(), temp_path, writer: Some(BufWriter::with_capacity(1 << 20, file)) })
+        Ok(Self {
+            final_path: path.to_path_buf(),
+            temp_path,
+            writer: Some(BufWriter::with_capacity(1 << 20, file)),
+        })
     }
 
     /// The buffered writer of the temporary file.
     pub fn writer(&mut self) -> Result<&mut BufWriter<File>, ExportError> {
         let path = &self.final_path;
-        self.writer.as_mut().ok_or_else(|| ExportError::Format { reason: "file already committed".into(), path: path.clone() })
+        self.writer.as_mut().ok_or_else(|| ExportError::Format {
+            reason: "file already committed".into(),
+            path: path.clone(),
+        })
     }
 
     /// The path the file will have once committed.
@@ -45,10 +55,14 @@ impl AtomicFile {
         let Some(writer) = self.writer.take() else {
             return Ok(self.final_path.clone());
         };
-        let file = writer.into_inner().map_err(|e| ExportError::io(e.into_error(), &self.final_path))?;
-        file.sync_all().map_err(|e| ExportError::io(e, &self.final_path))?;
+        let file = writer
+            .into_inner()
+            .map_err(|e| ExportError::io(e.into_error(), &self.final_path))?;
+        file.sync_all()
+            .map_err(|e| ExportError::io(e, &self.final_path))?;
         drop(file);
-        std::fs::rename(&self.temp_path, &self.final_path).map_err(|e| ExportError::io(e, &self.final_path))?;
+        std::fs::rename(&self.temp_path, &self.final_path)
+            .map_err(|e| ExportError::io(e, &self.final_path))?;
         Ok(self.final_path.clone())
     }
 }
@@ -99,7 +113,11 @@ impl AtomicDir {
         let temp_path = temp_path_for(path);
         let _ = std::fs::remove_dir_all(&temp_path);
         std::fs::create_dir(&temp_path).map_err(|e| ExportError::io(e, path))?;
-        Ok(Self { final_path: path.to_path_buf(), temp_path, committed: false })
+        Ok(Self {
+            final_path: path.to_path_buf(),
+            temp_path,
+            committed: false,
+        })
     }
 
     /// Where files are written until commit.
@@ -110,9 +128,11 @@ impl AtomicDir {
     /// Renames the folder into place (replacing an empty existing folder).
     pub fn commit(mut self) -> Result<PathBuf, ExportError> {
         if self.final_path.is_dir() {
-            std::fs::remove_dir(&self.final_path).map_err(|e| ExportError::io(e, &self.final_path))?;
+            std::fs::remove_dir(&self.final_path)
+                .map_err(|e| ExportError::io(e, &self.final_path))?;
         }
-        std::fs::rename(&self.temp_path, &self.final_path).map_err(|e| ExportError::io(e, &self.final_path))?;
+        std::fs::rename(&self.temp_path, &self.final_path)
+            .map_err(|e| ExportError::io(e, &self.final_path))?;
         self.committed = true;
         Ok(self.final_path.clone())
     }

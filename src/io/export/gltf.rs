@@ -27,7 +27,10 @@ pub struct GltfExportOptions {
 
 impl Default for GltfExportOptions {
     fn default() -> Self {
-        Self { max_morph_targets: 16, include_body: true }
+        Self {
+            max_morph_targets: 16,
+            include_body: true,
+        }
     }
 }
 
@@ -65,17 +68,30 @@ pub fn write_glb(
     sequence: &BakedSequence<'_>,
     options: &GltfExportOptions,
 ) -> Result<GltfExportReport, ExportError> {
-    let fail = |reason: String| ExportError::Format { reason, path: path.to_path_buf() };
+    let fail = |reason: String| ExportError::Format {
+        reason,
+        path: path.to_path_buf(),
+    };
     let frames = sequence.poses.len();
     if frames == 0 || sequence.rest_offsets.len() != frames {
-        return Err(fail(format!("{} poses but {} offset frames", frames, sequence.rest_offsets.len())));
+        return Err(fail(format!(
+            "{} poses but {} offset frames",
+            frames,
+            sequence.rest_offsets.len()
+        )));
     }
     if !(sequence.fps.is_finite() && sequence.fps > 0.0) {
         return Err(fail(format!("frame rate {} is not positive", sequence.fps)));
     }
     let v = garment.vertex_count();
-    if sequence.rest_offsets.iter().any(|f| f.len() != v || !f.iter().all(|p| p.iter().all(|c| c.is_finite()))) {
-        return Err(fail(format!("offsets must be finite with {v} vertices per frame")));
+    if sequence
+        .rest_offsets
+        .iter()
+        .any(|f| f.len() != v || !f.iter().all(|p| p.iter().all(|c| c.is_finite())))
+    {
+        return Err(fail(format!(
+            "offsets must be finite with {v} vertices per frame"
+        )));
     }
     let basis = offset_basis(sequence.rest_offsets, options.max_morph_targets.min(64));
     let mut b = GlbBuilder::default();
@@ -100,8 +116,7 @@ pub fn write_glb(
     }
     let joint_offset = nodes.len();
     let children = sk.children();
-    for j in 0..sk.len() {
-        let t = &sk.rest_local[j];
+    for (j, t) in sk.rest_local.iter().enumerate() {
         let q = t.rotation.coords;
         let mut node = json!({
             "name": sk.names[j],
@@ -112,7 +127,12 @@ pub fn write_glb(
             node["scale"] = json!([t.scale.x, t.scale.y, t.scale.z]);
         }
         if !children[j].is_empty() {
-            node["children"] = json!(children[j].iter().map(|&c| joint_node(c, joint_offset)).collect::<Vec<_>>());
+            node["children"] = json!(
+                children[j]
+                    .iter()
+                    .map(|&c| joint_node(c, joint_offset))
+                    .collect::<Vec<_>>()
+            );
         }
         nodes.push(node);
     }
@@ -123,7 +143,10 @@ pub fn write_glb(
 
     // Garment: template + mean offset as the base, PCA components as morph targets.
     let rest_world = sk.world_from_joint(&sk.rest_pose());
-    let garment_ibm: Vec<Mat4> = rest_world.iter().map(|m| m.try_inverse().unwrap_or_else(Mat4::identity)).collect();
+    let garment_ibm: Vec<Mat4> = rest_world
+        .iter()
+        .map(|m| m.try_inverse().unwrap_or_else(Mat4::identity))
+        .collect();
     let mut base = garment.mesh.clone();
     for (p, m) in base.positions.iter_mut().zip(&basis.mean) {
         *p += m;
@@ -132,7 +155,9 @@ pub fn write_glb(
     let mut skins = Vec::new();
     let garment_node = nodes.len();
     let garment_prim = b.primitive(&base, &garment.skin, &basis.targets)?;
-    let names: Vec<String> = (0..basis.targets.len()).map(|k| format!("pca_{k}")).collect();
+    let names: Vec<String> = (0..basis.targets.len())
+        .map(|k| format!("pca_{k}"))
+        .collect();
     meshes.push(json!({
         "name": garment.name,
         "primitives": [garment_prim],
@@ -160,20 +185,32 @@ pub fn write_glb(
             .poses
             .iter()
             .map(|p| {
-                let q = p.rotations.get(j).copied().unwrap_or(sk.rest_local[j].rotation).coords;
+                let q = p
+                    .rotations
+                    .get(j)
+                    .copied()
+                    .unwrap_or(sk.rest_local[j].rotation)
+                    .coords;
                 [q.x, q.y, q.z, q.w]
             })
             .collect();
         channels.push(json!({ "sampler": samplers.len(), "target": { "node": joint_node(j, joint_offset), "path": "rotation" } }));
-        samplers.push(json!({ "input": input, "output": b.vec4s(&rot), "interpolation": "LINEAR" }));
+        samplers
+            .push(json!({ "input": input, "output": b.vec4s(&rot), "interpolation": "LINEAR" }));
     }
-    let trans: Vec<[f32; 3]> = sequence.poses.iter().map(|p| p.root_translation.into()).collect();
+    let trans: Vec<[f32; 3]> = sequence
+        .poses
+        .iter()
+        .map(|p| p.root_translation.into())
+        .collect();
     channels.push(json!({ "sampler": samplers.len(), "target": { "node": joint_node(0, joint_offset), "path": "translation" } }));
     samplers.push(json!({ "input": input, "output": b.vec3s(&trans, false, None), "interpolation": "LINEAR" }));
     if !basis.targets.is_empty() {
         let flat: Vec<f32> = basis.weights.iter().flatten().copied().collect();
         channels.push(json!({ "sampler": samplers.len(), "target": { "node": garment_node, "path": "weights" } }));
-        samplers.push(json!({ "input": input, "output": b.scalars(&flat, false), "interpolation": "LINEAR" }));
+        samplers.push(
+            json!({ "input": input, "output": b.scalars(&flat, false), "interpolation": "LINEAR" }),
+        );
     }
 
     let doc = json!({
@@ -192,7 +229,11 @@ pub fn write_glb(
     let mut file = AtomicFile::create(path)?;
     file.write_all(&glb).map_err(|e| ExportError::io(e, path))?;
     file.commit()?;
-    Ok(GltfExportReport { morph_targets: basis.targets.len(), max_error_m: basis.max_error_m, bytes: glb.len() })
+    Ok(GltfExportReport {
+        morph_targets: basis.targets.len(),
+        max_error_m: basis.max_error_m,
+        bytes: glb.len(),
+    })
 }
 
 /// Packs a JSON document and a binary chunk into GLB bytes (both chunks 4-byte aligned).
@@ -202,7 +243,7 @@ pub fn glb_bytes(doc: &Value, bin: &[u8]) -> Result<Vec<u8>, serde_json::Error> 
         json.push(b' ');
     }
     let mut bin = bin.to_vec();
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();
@@ -235,7 +276,7 @@ struct GlbBuilder {
 
 impl GlbBuilder {
     fn view(&mut self, bytes: &[u8], target: Option<u32>) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let mut v = json!({ "buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len() });
@@ -247,8 +288,16 @@ impl GlbBuilder {
         self.views.len() - 1
     }
 
-    fn accessor(&mut self, view: usize, component: u32, count: usize, kind: &str, min_max: Option<(Value, Value)>) -> usize {
-        let mut a = json!({ "bufferView": view, "componentType": component, "count": count, "type": kind });
+    fn accessor(
+        &mut self,
+        view: usize,
+        component: u32,
+        count: usize,
+        kind: &str,
+        min_max: Option<(Value, Value)>,
+    ) -> usize {
+        let mut a =
+            json!({ "bufferView": view, "componentType": component, "count": count, "type": kind });
         if let Some((min, max)) = min_max {
             a["min"] = min;
             a["max"] = max;
@@ -295,7 +344,12 @@ impl GlbBuilder {
     }
 
     /// A skinned triangle primitive with optional morph targets.
-    fn primitive(&mut self, mesh: &TriMesh, skin: &SkinWeights, targets: &[Vec<Vec3>]) -> Result<Value, ExportError> {
+    fn primitive(
+        &mut self,
+        mesh: &TriMesh,
+        skin: &SkinWeights,
+        targets: &[Vec<Vec3>],
+    ) -> Result<Value, ExportError> {
         let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| (*p).into()).collect();
         let normals: Vec<[f32; 3]> = mesh.vertex_normals().iter().map(|n| (*n).into()).collect();
         let pos = self.vec3s(&positions, true, Some(ARRAY_BUFFER));
@@ -308,8 +362,13 @@ impl GlbBuilder {
         let idx: Vec<u32> = mesh.faces.iter().flatten().copied().collect();
         let iv = self.view(bytemuck::cast_slice(&idx), Some(ELEMENT_ARRAY_BUFFER));
         let ia = self.accessor(iv, UNSIGNED_INT, idx.len(), "SCALAR", None);
-        let mut attributes = json!({ "POSITION": pos, "NORMAL": nrm, "JOINTS_0": ja, "WEIGHTS_0": wa });
-        if let Some(uvs) = mesh.uvs.as_ref().filter(|u| u.len() == mesh.positions.len()) {
+        let mut attributes =
+            json!({ "POSITION": pos, "NORMAL": nrm, "JOINTS_0": ja, "WEIGHTS_0": wa });
+        if let Some(uvs) = mesh
+            .uvs
+            .as_ref()
+            .filter(|u| u.len() == mesh.positions.len())
+        {
             let view = self.view(bytemuck::cast_slice(uvs), Some(ARRAY_BUFFER));
             attributes["TEXCOORD_0"] = json!(self.accessor(view, FLOAT, uvs.len(), "VEC2", None));
         }
@@ -351,9 +410,19 @@ fn gltf_skin(skin: &SkinWeights) -> (Vec<[u16; 4]>, Vec<[f32; 4]>) {
             }
             let sum: f64 = weights.iter().map(|&x| x as f64).sum();
             if sum > 0.0 {
-                weights.iter_mut().for_each(|x| *x = (*x as f64 / sum) as f32);
-                let (imax, _) = weights.iter().enumerate().fold((0, 0.0), |a, (i, &x)| if x > a.1 { (i, x) } else { a });
-                let others: f32 = weights.iter().enumerate().filter(|(i, _)| *i != imax).map(|(_, x)| *x).sum();
+                weights
+                    .iter_mut()
+                    .for_each(|x| *x = (*x as f64 / sum) as f32);
+                let (imax, _) = weights
+                    .iter()
+                    .enumerate()
+                    .fold((0, 0.0), |a, (i, &x)| if x > a.1 { (i, x) } else { a });
+                let others: f32 = weights
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| *i != imax)
+                    .map(|(_, x)| *x)
+                    .sum();
                 weights[imax] = 1.0 - others;
             } else {
                 weights[0] = 1.0;

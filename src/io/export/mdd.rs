@@ -30,12 +30,23 @@ pub struct MddWriter {
 
 impl MddWriter {
     /// Starts a cache of `frames` frames of `points` points sampled at `fps`.
-    pub fn create(path: &Path, frames: usize, points: usize, fps: f32) -> Result<Self, ExportError> {
+    pub fn create(
+        path: &Path,
+        frames: usize,
+        points: usize,
+        fps: f32,
+    ) -> Result<Self, ExportError> {
         if points == 0 || frames == 0 || points > i32::MAX as usize || frames > i32::MAX as usize {
-            return Err(ExportError::Format { reason: format!("cannot write {frames} frames of {points} points"), path: path.to_path_buf() });
+            return Err(ExportError::Format {
+                reason: format!("cannot write {frames} frames of {points} points"),
+                path: path.to_path_buf(),
+            });
         }
         if !(fps.is_finite() && fps > 0.0) {
-            return Err(ExportError::Format { reason: format!("frame rate {fps} is not positive"), path: path.to_path_buf() });
+            return Err(ExportError::Format {
+                reason: format!("frame rate {fps} is not positive"),
+                path: path.to_path_buf(),
+            });
         }
         let mut file = AtomicFile::create(path)?;
         let mut header = Vec::with_capacity(8 + 4 * frames);
@@ -44,8 +55,14 @@ impl MddWriter {
         for k in 0..frames {
             header.extend_from_slice(&(k as f32 / fps).to_be_bytes());
         }
-        file.write_all(&header).map_err(|e| ExportError::io(e, path))?;
-        Ok(Self { file, points, frames, written: 0 })
+        file.write_all(&header)
+            .map_err(|e| ExportError::io(e, path))?;
+        Ok(Self {
+            file,
+            points,
+            frames,
+            written: 0,
+        })
     }
 
     /// Appends one frame of exactly `points` positions.
@@ -53,7 +70,10 @@ impl MddWriter {
         let path = self.file.path().to_path_buf();
         check_frame(positions, self.points, &path)?;
         if self.written == self.frames {
-            return Err(ExportError::Format { reason: format!("more than the {} frames announced", self.frames), path });
+            return Err(ExportError::Format {
+                reason: format!("more than the {} frames announced", self.frames),
+                path,
+            });
         }
         let mut buf = Vec::with_capacity(positions.len() * 12);
         for p in positions {
@@ -61,7 +81,9 @@ impl MddWriter {
                 buf.extend_from_slice(&c.to_be_bytes());
             }
         }
-        self.file.write_all(&buf).map_err(|e| ExportError::io(e, &path))?;
+        self.file
+            .write_all(&buf)
+            .map_err(|e| ExportError::io(e, &path))?;
         self.written += 1;
         Ok(())
     }
@@ -81,7 +103,10 @@ impl MddWriter {
 /// Reads a whole MDD file.
 pub fn read_mdd(path: &Path) -> Result<MddCache, ExportError> {
     let bytes = std::fs::read(path).map_err(|e| ExportError::io(e, path))?;
-    parse_mdd(&bytes).map_err(|reason| ExportError::Format { reason, path: path.to_path_buf() })
+    parse_mdd(&bytes).map_err(|reason| ExportError::Format {
+        reason,
+        path: path.to_path_buf(),
+    })
 }
 
 /// Parses MDD bytes.
@@ -90,12 +115,22 @@ pub fn parse_mdd(bytes: &[u8]) -> Result<MddCache, String> {
     let frames = i32::from_be_bytes([head[0], head[1], head[2], head[3]]);
     let points = i32::from_be_bytes([head[4], head[5], head[6], head[7]]);
     if frames < 0 || points < 0 {
-        return Err(format!("negative counts ({frames} frames, {points} points)"));
+        return Err(format!(
+            "negative counts ({frames} frames, {points} points)"
+        ));
     }
     let frames = frames as usize;
-    let times_end = frames.checked_mul(4).and_then(|n| n.checked_add(8)).ok_or("frame count overflows")?;
-    let times = bytes.get(8..times_end).ok_or("file ends inside the frame times")?;
-    let times_secs = times.chunks_exact(4).map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]])).collect();
+    let times_end = frames
+        .checked_mul(4)
+        .and_then(|n| n.checked_add(8))
+        .ok_or("frame count overflows")?;
+    let times = bytes
+        .get(8..times_end)
+        .ok_or("file ends inside the frame times")?;
+    let times_secs = times
+        .chunks_exact(4)
+        .map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
     let frames = super::read_f32s(&bytes[times_end..], points as usize, frames, true)?;
     Ok(MddCache { times_secs, frames })
 }

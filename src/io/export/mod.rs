@@ -43,25 +43,48 @@ pub enum ExportError {
 impl ExportError {
     /// Wraps an I/O error with its path.
     pub fn io(source: std::io::Error, path: &Path) -> Self {
-        Self::Io { source, path: path.to_path_buf() }
+        Self::Io {
+            source,
+            path: path.to_path_buf(),
+        }
     }
 }
 
 /// Reads `frames * points * 3` floats (little- or big-endian) into per-frame point lists,
 /// failing when the data is short; trailing bytes are an error too.
-fn read_f32s(data: &[u8], points: usize, frames: usize, big_endian: bool) -> Result<Vec<Vec<Vec3>>, String> {
-    let need = points.checked_mul(frames).and_then(|n| n.checked_mul(12)).ok_or("point count overflows")?;
+fn read_f32s(
+    data: &[u8],
+    points: usize,
+    frames: usize,
+    big_endian: bool,
+) -> Result<Vec<Vec<Vec3>>, String> {
+    let need = points
+        .checked_mul(frames)
+        .and_then(|n| n.checked_mul(12))
+        .ok_or("point count overflows")?;
     if data.len() != need {
-        return Err(format!("expected {need} bytes of positions, found {}", data.len()));
+        return Err(format!(
+            "expected {need} bytes of positions, found {}",
+            data.len()
+        ));
     }
     let f = |c: &[u8]| {
         let b = [c[0], c[1], c[2], c[3]];
-        if big_endian { f32::from_be_bytes(b) } else { f32::from_le_bytes(b) }
+        if big_endian {
+            f32::from_be_bytes(b)
+        } else {
+            f32::from_le_bytes(b)
+        }
     };
     Ok(data
         .chunks_exact(points.max(1) * 12)
         .take(frames)
-        .map(|frame| frame.chunks_exact(12).map(|p| Vec3::new(f(&p[0..4]), f(&p[4..8]), f(&p[8..12]))).collect())
+        .map(|frame| {
+            frame
+                .chunks_exact(12)
+                .map(|p| Vec3::new(f(&p[0..4]), f(&p[4..8]), f(&p[8..12])))
+                .collect()
+        })
         .collect())
 }
 
@@ -71,13 +94,22 @@ mod tests {
 
     fn frames() -> Vec<Vec<Vec3>> {
         vec![
-            vec![Vec3::new(1.0, 2.0, 3.0), Vec3::new(-0.5, 0.25, 1e-7), Vec3::new(0.1, 0.2, 0.3)],
-            vec![Vec3::new(4.0, 5.0, 6.0), Vec3::new(7.0, 8.0, 9.0), Vec3::new(f32::MIN_POSITIVE, -0.0, 1e30)],
+            vec![
+                Vec3::new(1.0, 2.0, 3.0),
+                Vec3::new(-0.5, 0.25, 1e-7),
+                Vec3::new(0.1, 0.2, 0.3),
+            ],
+            vec![
+                Vec3::new(4.0, 5.0, 6.0),
+                Vec3::new(7.0, 8.0, 9.0),
+                Vec3::new(f32::MIN_POSITIVE, -0.0, 1e30),
+            ],
         ]
     }
 
     fn le(bytes: &mut Vec<u8>, v: &[f32]) {
-        v.iter().for_each(|x| bytes.extend_from_slice(&x.to_le_bytes()));
+        v.iter()
+            .for_each(|x| bytes.extend_from_slice(&x.to_le_bytes()));
     }
 
     #[test]
@@ -185,7 +217,11 @@ mod tests {
     struct TriMeshLike;
     impl TriMeshLike {
         fn mesh() -> crate::geometry::TriMesh {
-            crate::geometry::TriMesh::new(vec![Vec3::zeros(), Vec3::x(), Vec3::y()], vec![[0, 1, 2]]).unwrap()
+            crate::geometry::TriMesh::new(
+                vec![Vec3::zeros(), Vec3::x(), Vec3::y()],
+                vec![[0, 1, 2]],
+            )
+            .unwrap()
         }
     }
 }

@@ -24,10 +24,20 @@ impl ObjSequenceWriter {
     /// Starts a sequence in the folder `dir` (created; it must not exist or be empty), naming
     /// files `<stem>_NNNN.obj` and reusing `topology`'s faces and UVs for every frame.
     pub fn create(dir: &Path, stem: &str, topology: &TriMesh) -> Result<Self, ExportError> {
-        if dir.exists() && std::fs::read_dir(dir).map(|mut d| d.next().is_some()).unwrap_or(true) {
-            return Err(ExportError::Format { reason: "output folder exists and is not empty".into(), path: dir.to_path_buf() });
+        if dir.exists()
+            && std::fs::read_dir(dir)
+                .map(|mut d| d.next().is_some())
+                .unwrap_or(true)
+        {
+            return Err(ExportError::Format {
+                reason: "output folder exists and is not empty".into(),
+                path: dir.to_path_buf(),
+            });
         }
-        let uvs = topology.uvs.clone().filter(|uv| uv.len() == topology.positions.len());
+        let uvs = topology
+            .uvs
+            .clone()
+            .filter(|uv| uv.len() == topology.positions.len());
         Ok(Self {
             dir: AtomicDir::create(dir)?,
             stem: stem.to_string(),
@@ -45,11 +55,20 @@ impl ObjSequenceWriter {
 
     /// Writes the next frame.
     pub fn write_frame(&mut self, positions: &[Vec3]) -> Result<(), ExportError> {
-        let path = self.dir.temp_path().join(Self::file_name(&self.stem, self.written));
+        let path = self
+            .dir
+            .temp_path()
+            .join(Self::file_name(&self.stem, self.written));
         check_frame(positions, self.points, &path)?;
         let mut f = AtomicFile::create(&path)?;
-        let text = obj_text(positions, &self.faces, self.uvs.as_deref(), &format!("{} frame {}", self.stem, self.written + 1));
-        f.write_all(text.as_bytes()).map_err(|e| ExportError::io(e, &path))?;
+        let text = obj_text(
+            positions,
+            &self.faces,
+            self.uvs.as_deref(),
+            &format!("{} frame {}", self.stem, self.written + 1),
+        );
+        f.write_all(text.as_bytes())
+            .map_err(|e| ExportError::io(e, &path))?;
         f.commit()?;
         self.written += 1;
         Ok(())
@@ -63,7 +82,12 @@ impl ObjSequenceWriter {
 
 /// One OBJ file's text. Coordinates use Rust's shortest round-trip float formatting, so
 /// reading them back gives the same `f32` bits.
-pub fn obj_text(positions: &[Vec3], faces: &[[u32; 3]], uvs: Option<&[[f32; 2]]>, comment: &str) -> String {
+pub fn obj_text(
+    positions: &[Vec3],
+    faces: &[[u32; 3]],
+    uvs: Option<&[[f32; 2]]>,
+    comment: &str,
+) -> String {
     use std::fmt::Write as _;
     let mut s = String::with_capacity(positions.len() * 40 + faces.len() * 24);
     let _ = writeln!(s, "# neural-cloth: {comment}");

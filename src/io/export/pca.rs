@@ -27,7 +27,10 @@ pub fn offset_basis(frames: &[Vec<Vec3>], max_targets: usize) -> OffsetBasis {
             *m += p / n.max(1) as f32;
         }
     }
-    let centered: Vec<Vec<Vec3>> = frames.iter().map(|f| f.iter().zip(&mean).map(|(p, m)| p - m).collect()).collect();
+    let centered: Vec<Vec<Vec3>> = frames
+        .iter()
+        .map(|f| f.iter().zip(&mean).map(|(p, m)| p - m).collect())
+        .collect();
     // Gram matrix in f64 for accuracy.
     let mut gram = nalgebra::DMatrix::<f64>::zeros(n, n);
     for i in 0..n {
@@ -35,7 +38,12 @@ pub fn offset_basis(frames: &[Vec<Vec3>], max_targets: usize) -> OffsetBasis {
             let d: f64 = centered[i]
                 .iter()
                 .zip(&centered[j])
-                .map(|(a, b)| a.iter().zip(b.iter()).map(|(x, y)| f64::from(*x) * f64::from(*y)).sum::<f64>())
+                .map(|(a, b)| {
+                    a.iter()
+                        .zip(b.iter())
+                        .map(|(x, y)| f64::from(*x) * f64::from(*y))
+                        .sum::<f64>()
+                })
                 .sum();
             gram[(i, j)] = d;
             gram[(j, i)] = d;
@@ -70,7 +78,12 @@ pub fn offset_basis(frames: &[Vec<Vec3>], max_targets: usize) -> OffsetBasis {
     }
     let weights: Vec<Vec<f32>> = centered
         .iter()
-        .map(|c| targets.iter().map(|t| t.iter().zip(c).map(|(a, b)| a.dot(b)).sum()).collect())
+        .map(|c| {
+            targets
+                .iter()
+                .map(|t| t.iter().zip(c).map(|(a, b)| a.dot(b)).sum())
+                .collect()
+        })
         .collect();
     let mut max_error_m = 0.0f32;
     for (f, frame) in frames.iter().enumerate() {
@@ -82,7 +95,12 @@ pub fn offset_basis(frames: &[Vec<Vec3>], max_targets: usize) -> OffsetBasis {
             max_error_m = max_error_m.max((approx - p).norm());
         }
     }
-    OffsetBasis { mean, targets, weights, max_error_m }
+    OffsetBasis {
+        mean,
+        targets,
+        weights,
+        max_error_m,
+    }
 }
 
 #[cfg(test)]
@@ -91,18 +109,28 @@ mod tests {
 
     #[test]
     fn recovers_a_rank_two_sequence_exactly() {
-        let a: Vec<Vec3> = (0..50).map(|i| Vec3::new(i as f32 * 0.01, 0.0, 0.02)).collect();
-        let b: Vec<Vec3> = (0..50).map(|i| Vec3::new(0.0, (i as f32 * 0.3).sin() * 0.01, 0.0)).collect();
+        let a: Vec<Vec3> = (0..50)
+            .map(|i| Vec3::new(i as f32 * 0.01, 0.0, 0.02))
+            .collect();
+        let b: Vec<Vec3> = (0..50)
+            .map(|i| Vec3::new(0.0, (i as f32 * 0.3).sin() * 0.01, 0.0))
+            .collect();
         let frames: Vec<Vec<Vec3>> = (0..30)
             .map(|f| {
                 let (s, c) = ((f as f32) * 0.2).sin_cos();
-                a.iter().zip(&b).map(|(x, y)| x * s + y * c + Vec3::new(0.1, 0.0, 0.0)).collect()
+                a.iter()
+                    .zip(&b)
+                    .map(|(x, y)| x * s + y * c + Vec3::new(0.1, 0.0, 0.0))
+                    .collect()
             })
             .collect();
         let basis = offset_basis(&frames, 8);
         assert_eq!(basis.targets.len(), 2, "only two independent directions");
         assert!(basis.max_error_m < 1e-5, "{}", basis.max_error_m);
         let one = offset_basis(&frames, 1);
-        assert!(one.max_error_m > 1e-3, "one target cannot represent two directions");
+        assert!(
+            one.max_error_m > 1e-3,
+            "one target cannot represent two directions"
+        );
     }
 }
