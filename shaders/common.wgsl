@@ -9,6 +9,8 @@ struct Globals {
     light_dir: vec4<f32>,
     // rgb: linear background colour; a: 1.
     background: vec4<f32>,
+    // rgb: the background in display (sRGB-encoded) space.
+    background_display: vec4<f32>,
     // rgb: linear wireframe colour; a: opacity.
     wire_color: vec4<f32>,
     // x, y: target size in pixels; z: 1 to encode sRGB in the shader (linear target), 0 otherwise;

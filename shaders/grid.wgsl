@@ -22,33 +22,36 @@ fn vs_main(@builtin(vertex_index) vertex_index: u32) -> VertexOut {
     return out;
 }
 
-// Coverage of lines of the given spacing at `xz`, anti-aliased over one pixel.
-fn grid_lines(xz: vec2<f32>, spacing: f32, width_px: f32) -> f32 {
-    let coord = xz / spacing;
-    let deriv = max(fwidth(coord), vec2<f32>(1e-6));
-    let g = abs(fract(coord - 0.5) - 0.5) / deriv;
-    let line = min(g.x, g.y);
-    return 1.0 - clamp(line - 0.5 * width_px + 0.5, 0.0, 1.0);
+// Coverage (0..1) of lines `width_px` wide at distance `g_px` pixels from the nearest line.
+fn line_coverage(g_px: vec2<f32>, width_px: f32) -> f32 {
+    return 1.0 - clamp(min(g_px.x, g_px.y) - 0.5 * width_px + 0.5, 0.0, 1.0);
 }
 
+// Blended in display (gamma) space with display-space constants: no per-pixel transfer
+// function, which matters on software rasterisers where the ground covers half the screen.
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let xz = in.pos_in_world.xz;
-    let floor_color = globals.background.rgb * 1.18 + vec3<f32>(0.012);
-    var color = floor_color;
-    if globals.grid.w > 0.5 {
-        let minor = grid_lines(xz, max(globals.grid.y, 1e-3), 1.0);
-        let major = grid_lines(xz, 1.0, 1.6);
-        color = mix(color, vec3<f32>(0.27, 0.29, 0.33), minor * 0.35);
-        color = mix(color, vec3<f32>(0.40, 0.43, 0.48), major * 0.6);
-        // Axis lines: X red, Z blue.
-        let axis = abs(xz) / max(fwidth(xz), vec2<f32>(1e-6));
-        color = mix(color, vec3<f32>(0.62, 0.22, 0.22), 1.0 - clamp(axis.y - 0.8, 0.0, 1.0));
-        color = mix(color, vec3<f32>(0.22, 0.32, 0.66), 1.0 - clamp(axis.x - 0.8, 0.0, 1.0));
-    }
-    // Fade into the background with distance from the camera's footprint.
+    let background = globals.background_display.rgb;
+    var color = background + vec3<f32>(0.052);
+    // One derivative serves every line family: fwidth(xz / s) = fwidth(xz) / s.
+    let fw = max(fwidth(xz), vec2<f32>(1e-6));
+    let cell = max(globals.grid.y, 1e-3);
+    let minor = line_coverage(abs(fract(xz / cell - 0.5) - 0.5) * cell / fw, 1.0);
+    let major = line_coverage(abs(fract(xz - 0.5) - 0.5) / fw, 1.6);
+    color = mix(color, vec3<f32>(0.56, 0.58, 0.61), minor * 0.35);
+    color = mix(color, vec3<f32>(0.66, 0.68, 0.72), major * 0.7);
+    // Axis lines: X red, Z blue.
+    let axis = abs(xz) / fw;
+    color = mix(color, vec3<f32>(0.81, 0.51, 0.51), 1.0 - clamp(axis.y - 0.8, 0.0, 1.0));
+    color = mix(color, vec3<f32>(0.51, 0.60, 0.83), 1.0 - clamp(axis.x - 0.8, 0.0, 1.0));
+    // Fade into the background with distance from the camera.
     let dist = length(in.pos_in_world - globals.eye_in_world.xyz);
     let fade = clamp(1.0 - dist / (0.9 * globals.grid.z), 0.0, 1.0);
-    let alpha = fade * fade;
-    return encode_output(mix(globals.background.rgb, color, alpha), 1.0);
+    let out = mix(background, color, fade * fade);
+    if globals.viewport.z > 0.5 {
+        return vec4<f32>(out, 1.0);
+    }
+    // sRGB target: the hardware encodes, so hand it (approximately) linear values.
+    return vec4<f32>(out * out, 1.0);
 }

@@ -66,7 +66,19 @@ fn harness(launcher: Option<Box<dyn TrainerLauncher>>) -> Harness<'static, Neura
             app
         });
     harness.run();
+    wait_for_preview(&mut harness);
     harness
+}
+
+/// Lets the preview model finish building in the background, then settles the UI.
+fn wait_for_preview(h: &mut Harness<'static, NeuralClothApp>) {
+    let built = h
+        .state_mut()
+        .state
+        .preview
+        .wait_until_built(Duration::from_secs(120));
+    assert!(built, "the preview model builds");
+    h.run();
 }
 
 /// The viewport's pixels cut out of a full render.

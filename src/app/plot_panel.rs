@@ -110,9 +110,11 @@ impl NeuralClothApp {
                     ui.checkbox(shown, metric.label());
                 }
             }
+        });
+        ui.horizontal(|ui| {
             ui.checkbox(&mut curves.validation, "validation (dashed)");
             ui.separator();
-            ui.label("x:");
+            ui.label("x axis:");
             ui.selectable_value(&mut curves.x_axis, XAxis::Step, "step");
             ui.selectable_value(&mut curves.x_axis, XAxis::WallClock, "wall-clock (s)");
         });

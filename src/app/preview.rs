@@ -508,9 +508,16 @@ mod tests {
             .expect("run motion")
             .clone();
         let fps = scene.training_fps;
+        let (avatar, garment) = (Arc::new(avatar), Arc::new(scene.garment.clone()));
         let run = |w: f32| {
             let mut p = Preview::default();
-            p.garment_positions(&avatar, &scene.garment, 0, &motion, 1.3, w, fps, true)
+            let first = p.garment_positions(&avatar, &garment, 0, &motion, 1.3, w, fps, true);
+            assert!(
+                first.is_none() && p.is_building(),
+                "built in the background"
+            );
+            assert!(p.wait_until_built(std::time::Duration::from_secs(60)));
+            p.garment_positions(&avatar, &garment, 0, &motion, 1.3, w, fps, true)
                 .expect("preview runs")
         };
         let (a0, b0, a2) = (run(0.0), run(0.0), run(2.0));

@@ -52,12 +52,22 @@ pub enum Command {
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        None => neural_cloth::app::run_app(neural_cloth::app::AppOptions {
-            project: cli.project,
-            launcher: Some(Box::new(app_launcher::RealLauncher)),
-            exporter: Some(Box::new(app_launcher::RealExporter)),
-            ..Default::default()
-        }),
+        None => {
+            // Leave one core to the UI: training (burn's flex kernels, collision queries) runs on
+            // rayon's global pool, and the viewport must keep drawing while it trains.
+            let cores = std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(1);
+            let _ = rayon::ThreadPoolBuilder::new()
+                .num_threads(cores.saturating_sub(1).max(1))
+                .build_global();
+            neural_cloth::app::run_app(neural_cloth::app::AppOptions {
+                project: cli.project,
+                launcher: Some(Box::new(app_launcher::RealLauncher)),
+                exporter: Some(Box::new(app_launcher::RealExporter)),
+                ..Default::default()
+            })
+        }
         Some(Command::Inspect { file }) => inspect::run(&file),
         Some(Command::Train(args)) => train::run(args),
         Some(Command::Eval(args)) => train::eval(args),

@@ -3,7 +3,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-/// Per-frame uniform; matches `Globals` in `shaders/common.wgsl` (160 bytes).
+/// Per-frame uniform; matches `Globals` in `shaders/common.wgsl` (176 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct Globals {
@@ -15,6 +15,8 @@ pub struct Globals {
     pub light_dir: [f32; 4],
     /// Linear RGBA background colour.
     pub background: [f32; 4],
+    /// The background in display (sRGB-encoded) space.
+    pub background_display: [f32; 4],
     /// Linear RGBA wireframe colour.
     pub wire_color: [f32; 4],
     /// Target width and height in pixels, sRGB-encode flag (1 or 0), marker diameter in pixels.
@@ -130,7 +132,7 @@ mod tests {
 
     #[test]
     fn uniform_sizes_match_wgsl() {
-        assert_eq!(std::mem::size_of::<Globals>(), 160);
+        assert_eq!(std::mem::size_of::<Globals>(), 176);
         assert_eq!(std::mem::size_of::<MeshParams>(), 48);
         assert_eq!(std::mem::size_of::<PointInstance>(), 28);
     }

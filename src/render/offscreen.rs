@@ -11,14 +11,28 @@ pub const OFFSCREEN_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unor
 /// Creates a device and queue without a window, preferring a hardware adapter and falling back
 /// to any adapter (e.g. Mesa lavapipe). Returns a human-readable adapter description too.
 pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, String), RenderError> {
-    let instance =
-        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-        power_preference: wgpu::PowerPreference::HighPerformance,
-        force_fallback_adapter: false,
-        compatible_surface: None,
-        apply_limit_buckets: false,
-    }))
+    // Vulkan/Metal/DX12 first (GL would probe for a display); `WGPU_BACKEND` overrides.
+    let explicit = std::env::var_os("WGPU_BACKEND").is_some();
+    let request = |backends: Option<wgpu::Backends>| {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        if let Some(b) = backends {
+            desc.backends = b;
+        }
+        let instance = wgpu::Instance::new(desc);
+        pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            apply_limit_buckets: false,
+        }))
+    };
+    let adapter = match (
+        explicit,
+        request((!explicit).then_some(wgpu::Backends::PRIMARY)),
+    ) {
+        (false, Err(_)) => request(None),
+        (_, found) => found,
+    }
     .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
     let info = adapter.get_info();
     let description = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
@@ -48,8 +62,18 @@ impl Offscreen {
 
     /// Creates a device and a `size` pixel target with `sample_count` samples (1 or 4).
     pub fn with_samples(size: [u32; 2], sample_count: u32) -> Result<Self, RenderError> {
+        Self::with_format(size, sample_count, OFFSCREEN_FORMAT)
+    }
+
+    /// Like [`Offscreen::with_samples`] with a colour `format` (8-bit RGBA or BGRA, linear
+    /// or sRGB).
+    pub fn with_format(
+        size: [u32; 2],
+        sample_count: u32,
+        format: wgpu::TextureFormat,
+    ) -> Result<Self, RenderError> {
         let (device, queue, adapter) = headless_device()?;
-        let renderer = Renderer::with_samples(&device, &queue, OFFSCREEN_FORMAT, sample_count);
+        let renderer = Renderer::with_samples(&device, &queue, format, sample_count);
         let target = renderer.create_target(size);
         Ok(Self {
             renderer,
@@ -401,7 +425,26 @@ mod scene_tests {
         };
         let image = screenshot(&frame, None, &options, [480, 360]).expect("a wgpu adapter");
         if let Some(path) = std::env::var_os("NEURAL_CLOTH_RENDER_PNG") {
-            image.save(path).expect("save png");
+            image.save(&path).expect("save png");
+            // The overlays too, beside it.
+            if let Some(g) = frame.garment.as_mut() {
+                g.colors = Some(
+                    g.positions
+                        .iter()
+                        .map(|p| crate::render::heat_color(p.y - 1.0, 0.5))
+                        .collect(),
+                );
+            }
+            let all = DrawOptions {
+                heat_map: true,
+                wireframe: true,
+                collision_points: true,
+                ..Default::default()
+            };
+            let overlays = screenshot(&frame, None, &all, [480, 360]).expect("render");
+            overlays
+                .save(std::path::Path::new(&path).with_extension("overlays.png"))
+                .expect("save png");
         }
         let blueish = image
             .pixels()
@@ -466,9 +509,33 @@ mod bench {
             "frame building (skinning + normals) alone: {:.2} ms",
             start.elapsed().as_secs_f64() * 1e3 / 120.0
         );
-        for samples in [1, 4] {
-            let mut off = Offscreen::with_samples(size, samples).expect("a wgpu adapter");
-            for busy in [0usize, 1, 2] {
+        let variants = [
+            (1, OFFSCREEN_FORMAT, DrawOptions::default()),
+            (
+                1,
+                OFFSCREEN_FORMAT,
+                DrawOptions {
+                    grid: false,
+                    ..Default::default()
+                },
+            ),
+            (4, OFFSCREEN_FORMAT, DrawOptions::default()),
+        ];
+        let only_idle = std::env::var_os("NEURAL_CLOTH_BENCH_IDLE_ONLY").is_some();
+        {
+            let mut off = Offscreen::with_samples(size, 1).expect("a wgpu adapter");
+            let empty = DrawOptions::default();
+            let times =
+                measure_frame_times(&mut off, &camera, &empty, 60, |_| SceneFrame::default())
+                    .expect("render");
+            println!(
+                "ground grid only (no meshes) {}x{}: mean {:.2} ms",
+                size[0], size[1], times.mean_ms
+            );
+        }
+        for (samples, format, options) in variants {
+            let mut off = Offscreen::with_format(size, samples, format).expect("a wgpu adapter");
+            for busy in [0usize, 1, 2].into_iter().filter(|b| !only_idle || *b == 0) {
                 let stop = AtomicBool::new(false);
                 let times = std::thread::scope(|s| {
                     for _ in 0..busy {
@@ -483,19 +550,19 @@ mod bench {
                             }
                         });
                     }
-                    let times =
-                        measure_frame_times(&mut off, &camera, &DrawOptions::default(), 120, |k| {
-                            let pose = motion.sample(k as f32 / 60.0);
-                            SceneFrame::from_scene(&scene.avatar, &pose, Some(&scene.garment), None)
-                        });
+                    let times = measure_frame_times(&mut off, &camera, &options, 120, |k| {
+                        let pose = motion.sample(k as f32 / 60.0);
+                        SceneFrame::from_scene(&scene.avatar, &pose, Some(&scene.garment), None)
+                    });
                     stop.store(true, Ordering::Relaxed);
                     times
                 })
                 .expect("render");
                 println!(
-                    "viewport {}x{} x{samples} samples on {}, {busy} busy CPU threads: mean {:.2} ms ({:.0} fps), median {:.2} ms, max {:.2} ms",
+                    "viewport {}x{} x{samples} samples {format:?} grid {} on {}, {busy} busy CPU threads: mean {:.2} ms ({:.0} fps), median {:.2} ms, max {:.2} ms",
                     size[0],
                     size[1],
+                    options.grid,
                     off.adapter(),
                     times.mean_ms,
                     1e3 / times.mean_ms.max(1e-6),

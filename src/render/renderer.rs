@@ -392,7 +392,13 @@ impl Renderer {
             eye_in_world: [eye.x, eye.y, eye.z, 1.0],
             light_dir: [light.x, light.y, light.z, 0.0],
             background: linear_rgba(BACKGROUND_SRGB[0], BACKGROUND_SRGB[1], BACKGROUND_SRGB[2]),
-            wire_color: [wire[0], wire[1], wire[2], 0.6],
+            background_display: [
+                f32::from(BACKGROUND_SRGB[0]) / 255.0,
+                f32::from(BACKGROUND_SRGB[1]) / 255.0,
+                f32::from(BACKGROUND_SRGB[2]) / 255.0,
+                1.0,
+            ],
+            wire_color: [wire[0], wire[1], wire[2], 0.4],
             viewport: [
                 w as f32,
                 h as f32,
