@@ -461,6 +461,7 @@ impl AppState {
             fabric: self.fabric.clone(),
             config: self.train_config.clone(),
             run_dir,
+            sources: self.scene.sources.clone(),
         };
         match self.training.start(request, notify) {
             Ok(()) => self.message(Level::Info, "training started"),

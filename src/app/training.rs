@@ -58,6 +58,9 @@ pub struct TrainingRequest {
     pub config: TrainConfig,
     /// Where checkpoints go.
     pub run_dir: PathBuf,
+    /// The files the scene was loaded from (none: the built-in scene), so the run can
+    /// describe its scene for later evaluation and baking.
+    pub sources: super::project::SceneSources,
 }
 
 /// Starts a trainer thread for a request (the real one builds a training session from the

@@ -7,6 +7,45 @@ use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
 use neural_cloth::scene::config::SceneConfig;
 use neural_cloth::train::{RunLocation, TrainSetup, Trainer, TrainerHandle};
 
+/// The scene description of an app request: the built-in scene with the loaded files in
+/// place of its avatar, garment and motions (absolute paths).
+fn scene_config_of(request: &TrainingRequest) -> SceneConfig {
+    use neural_cloth::scene::config::{AvatarSource, GarmentSource, MotionSource, Split};
+    let abs = |p: &std::path::Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let mut config = SceneConfig::default_scene();
+    let sources = &request.sources;
+    config.effects = request.scene.effects;
+    config.training_fps = request.scene.training_fps;
+    if let Some(a) = &sources.avatar {
+        config.avatar = AvatarSource::File {
+            path: abs(a),
+            units: None,
+        };
+    }
+    if let Some(g) = &sources.garment {
+        config.garment = GarmentSource::File {
+            path: abs(g),
+            units: None,
+            smoothing_passes: None,
+        };
+    }
+    // A loaded avatar brings its own animations; loaded BVH motions come on top.
+    let mut motion_files: Vec<&std::path::PathBuf> = sources.avatar.iter().collect();
+    motion_files.extend(&sources.motions);
+    if !motion_files.is_empty() {
+        config.motions = motion_files
+            .into_iter()
+            .map(|m| MotionSource::File {
+                path: abs(m),
+                units: None,
+                split: Split::Train,
+                name: None,
+            })
+            .collect();
+    }
+    config
+}
+
 /// Starts real training runs for the app.
 pub struct RealLauncher;
 
@@ -18,8 +57,8 @@ impl TrainerLauncher for RealLauncher {
     ) -> Result<TrainerHandle, String> {
         let scene = (*request.scene).clone();
         // The run stores its scene description so it can be evaluated and baked later; a
-        // scene edited in the app that differs from it is refused at load time (fingerprint).
-        let scene_config = SceneConfig::default_scene();
+        // scene that no longer matches it is refused at load time (garment fingerprint).
+        let scene_config = scene_config_of(&request);
         let setup = TrainSetup {
             scene,
             scene_config,
