@@ -7,8 +7,7 @@ use neural_cloth::model::descriptors::{DYNAMIC_DIM, STATIC_DIM, rotation_part};
 use neural_cloth::model::inference::InferenceScene;
 use neural_cloth::model::{
     ClothNet, ClothNetConfig, DescriptorConfig, DescriptorExtractor, Descriptors, EncoderKind,
-    GarmentLbs, InferenceEngine, InferenceOptions, InferenceWeights, Precision,
-    SkinMatrixBuilder,
+    GarmentLbs, InferenceEngine, InferenceOptions, InferenceWeights, Precision, SkinMatrixBuilder,
 };
 use neural_cloth::scene::{
     Avatar, Garment, GarmentOptions, JointTransform, Motion, Pose, Skeleton,
@@ -682,22 +681,33 @@ fn f16_engine_error_is_measured_and_small() {
     assert_eq!(half.basis_bytes() * 2, exact.basis_bytes());
     assert!(half.weight_bytes() * 2 <= exact.weight_bytes() + 4 * 1024 * 8);
     let m = motion(&av.skeleton, 90, 10, 5);
-    let (mut worst, mut scale) = (0.0f32, 0.0f32);
+    let (mut worst_offset, mut worst_posed, mut scale) = (0.0f32, 0.0f32, 0.0f32);
     for pose in &m.frames {
         exact.step(pose, 1.0).unwrap();
         half.step(pose, 1.0).unwrap();
         scale = scale.max(max_abs(exact.offsets()));
-        for (a, b) in exact.garment_positions().iter().zip(half.garment_positions()) {
-            worst = worst.max((a - b).norm());
+        worst_offset = worst_offset.max(max_diff(exact.offsets(), half.offsets()));
+        for (a, b) in exact
+            .garment_positions()
+            .iter()
+            .zip(half.garment_positions())
+        {
+            worst_posed = worst_posed.max((a - b).norm());
         }
         assert_eq!(exact.body_positions(), half.body_positions());
     }
-    eprintln!("f16 vs f32: worst vertex error {worst:e} m, offsets up to {scale} m");
-    assert!(scale > 1e-3, "offsets must be large enough to matter ({scale})");
-    assert!(worst > 0.0, "f16 storage must change something");
+    eprintln!(
+        "f16 vs f32: worst offset error {worst_offset:e} m, posed {worst_posed:e} m, offsets up \
+         to {scale} m"
+    );
     assert!(
-        worst <= 1e-3 * scale,
-        "f16 error {worst} m against offsets of {scale} m"
+        scale > 1e-3,
+        "offsets must be large enough to matter ({scale})"
+    );
+    assert!(worst_offset > 0.0, "f16 storage must change something");
+    assert!(
+        worst_offset <= 1e-3 * scale && worst_posed <= 2e-3 * scale,
+        "f16 error {worst_offset} m (posed {worst_posed} m) against offsets of {scale} m"
     );
 }
 
@@ -814,13 +824,19 @@ fn engine_steps_allocate_nothing() {
 
 /// Profiling driver, not a test: steps the default f16 engine on the benchmark scene for
 /// `NC_PROFILE_SECS` seconds (default 10) at `NC_PROFILE_DOF` degrees of freedom (default
-/// 10 000) and prints the median frame time, e.g. under
+/// 10 000) on `NC_PROFILE_THREADS` threads (default 1; `NC_PROFILE_EXACT=1` for f32 weights)
+/// and prints the median frame time, e.g. under
 /// `perf record -g target/release/deps/model-* profile_inference --ignored --nocapture`.
 #[test]
 #[ignore]
 fn profile_inference() {
     use neural_cloth::bench::{bench_avatar, bench_motion, random_weights, scene_with_dof};
-    let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
+    let env = |k: &str, d: f64| {
+        std::env::var(k)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(d)
+    };
     let secs = env("NC_PROFILE_SECS", 10.0);
     let dof = env("NC_PROFILE_DOF", 10_000.0) as usize;
     let exact = env("NC_PROFILE_EXACT", 0.0) != 0.0;
@@ -828,31 +844,46 @@ fn profile_inference() {
     let g = scene_with_dof(&av, dof).unwrap();
     let ex = DescriptorExtractor::new(&av.skeleton, &DescriptorConfig::default(), FPS).unwrap();
     let w = random_weights(ex.joint_count(), g.vertex_count()).unwrap();
-    let options = if exact {
-        InferenceOptions::exact()
-    } else {
-        InferenceOptions::default()
+    let threads = env("NC_PROFILE_THREADS", 1.0) as usize;
+    let options = InferenceOptions {
+        threads,
+        parallel_min_values: 0,
+        ..if exact {
+            InferenceOptions::exact()
+        } else {
+            InferenceOptions::default()
+        }
     };
     let mut engine =
         InferenceEngine::from_scene(w, &av, &g, &DescriptorConfig::default(), FPS, options)
             .unwrap();
+    // NC_PROFILE_PAIRED=<MB>: after each frame, time a streaming read of that many MB.
+    let paired = env("NC_PROFILE_PAIRED", 0.0);
+    let buffer = neural_cloth::bench::floor_buffer((paired * 1e6) as usize);
     let walk = bench_motion().unwrap();
     let start = std::time::Instant::now();
-    let mut times = Vec::new();
+    let (mut times, mut reads) = (Vec::new(), Vec::new());
     for pose in walk.frames.iter().cycle() {
         let t = std::time::Instant::now();
         engine.step(pose, 1.0).unwrap();
         times.push(t.elapsed().as_secs_f64());
+        if paired > 0.0 {
+            reads.push(neural_cloth::bench::read_pass_secs(&buffer, threads));
+        }
         if start.elapsed().as_secs_f64() > secs {
             break;
         }
     }
-    times.sort_by(f64::total_cmp);
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0) * 1e3
+    };
     eprintln!(
-        "{} DoF, {} frames, median {:.4} ms, body {} vertices",
+        "{} DoF, {} frames, median {:.4} ms, paired read of {paired} MB {:.4} ms, body {} vertices",
         g.vertex_count() * 3,
         times.len(),
-        times[times.len() / 2] * 1e3,
+        median(&mut times),
+        median(&mut reads),
         engine.body_positions().len()
     );
 }

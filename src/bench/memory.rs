@@ -51,32 +51,46 @@ unsafe fn read_all_avx2(data: &[f32]) -> f32 {
         }
     }
     let mut lanes = [0f32; 8];
-    let total = acc.iter().fold(_mm256_setzero_ps(), |s, a| _mm256_add_ps(s, *a));
+    let total = acc
+        .iter()
+        .fold(_mm256_setzero_ps(), |s, a| _mm256_add_ps(s, *a));
     // SAFETY: `lanes` holds eight floats.
     unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), total) };
     lanes.iter().sum::<f32>() + blocks.remainder().iter().sum::<f32>()
+}
+
+/// A buffer of `bytes` bytes (at least 4 KiB) for [`read_pass_secs`], every page touched.
+pub fn floor_buffer(bytes: usize) -> Vec<f32> {
+    let n = (bytes / 4).max(1024);
+    (0..n).map(|i| (i % 1024) as f32 * 1e-3).collect()
+}
+
+/// Seconds for one streaming read of all of `data` by `threads` threads (each reads one
+/// contiguous part).
+pub fn read_pass_secs(data: &[f32], threads: usize) -> f64 {
+    let chunk = data.len().div_ceil(threads.max(1)).max(1);
+    let start = Instant::now();
+    let total: f32 = std::thread::scope(|s| {
+        let handles: Vec<_> = data
+            .chunks(chunk)
+            .map(|c| s.spawn(move || read_all(c)))
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap_or(0.0)).sum()
+    });
+    std::hint::black_box(total);
+    start.elapsed().as_secs_f64()
 }
 
 /// Reads a `bytes`-sized `f32` buffer `passes` times (sum of all values) with `threads`
 /// threads and keeps the fastest pass: the floor for any code that must stream that much
 /// data once per frame.
 pub fn measure_bandwidth(bytes: usize, threads: usize, passes: usize) -> MemoryBandwidth {
-    let n = (bytes / 4).max(1024);
-    let data: Vec<f32> = (0..n).map(|i| (i % 1024) as f32 * 1e-3).collect();
+    let data = floor_buffer(bytes);
+    let n = data.len();
     let threads = threads.max(1);
-    let chunk = n.div_ceil(threads);
     let mut best = f64::INFINITY;
     for _ in 0..passes.max(1) {
-        let start = Instant::now();
-        let total: f32 = std::thread::scope(|s| {
-            let handles: Vec<_> = data
-                .chunks(chunk)
-                .map(|c| s.spawn(move || read_all(c)))
-                .collect();
-            handles.into_iter().map(|h| h.join().unwrap_or(0.0)).sum()
-        });
-        std::hint::black_box(total);
-        best = best.min(start.elapsed().as_secs_f64());
+        best = best.min(read_pass_secs(&data, threads));
     }
     MemoryBandwidth {
         bytes: n * 4,

@@ -15,13 +15,14 @@ use serde::Serialize;
 
 use crate::model::{
     ClothNetConfig, DescriptorConfig, EncoderKind, InferenceEngine, InferenceOptions,
-    InferenceWeights,
+    InferenceWeights, Precision,
 };
 use crate::scene::procedural::{GarmentKind, MotionKind, builtin_garment, mannequin, motion};
 use crate::scene::{Avatar, Garment, Motion};
 
 pub use memory::{
-    MemoryBandwidth, measure_bandwidth, peak_rss_bytes, reset_peak_rss, rss_bytes,
+    MemoryBandwidth, floor_buffer, measure_bandwidth, peak_rss_bytes, read_pass_secs,
+    reset_peak_rss, rss_bytes,
 };
 pub use suite::{BenchOptions, BenchReport, TrainBench, bench_training, run_suite};
 
@@ -35,12 +36,19 @@ const WARM_UP: usize = 5;
 pub struct InferenceBench {
     /// Degrees of freedom (3 × garment vertices).
     pub dof: usize,
+    /// Body vertices posed per frame.
+    pub body_vertices: usize,
     /// Encoder layout (`StaticOnly` = the scene has no dynamics).
     pub model: EncoderKind,
     /// Storage precision of the basis / of the other layers, e.g. `f16/f16`.
     pub precision: String,
     /// Worker threads (1, or all cores).
     pub threads: usize,
+    /// True when the garment pass ran on the thread pool (`threads > 1` and at least
+    /// `parallel_min_values` garment values; below that the engine stays on one thread).
+    pub parallel: bool,
+    /// Milliseconds to build the engine (including the in-place f16 conversion).
+    pub build_ms: f64,
     /// Median milliseconds per frame (pose → garment + body meshes).
     pub ms_per_frame: f64,
     /// Frames per second from the median.
@@ -57,6 +65,12 @@ pub struct InferenceBench {
     pub basis_f32_bytes: usize,
     /// Mean fraction of basis rows read per frame (rows of nonzero decoder outputs).
     pub basis_rows_read: f64,
+    /// Median milliseconds of a streaming read of a buffer the size of the f32 basis, one
+    /// read after each timed frame with the run's thread count (the floor in the same time
+    /// window as the frames; measured for the largest garment only).
+    pub paired_floor_ms: Option<f64>,
+    /// The same for a buffer the size of the basis as stored, when that differs (f16).
+    pub paired_stored_floor_ms: Option<f64>,
     /// Peak resident memory from just before the engine was built to the last frame, minus
     /// the resident memory before (the weights already loaded), bytes (Linux; 0 elsewhere).
     pub engine_peak_bytes: usize,
@@ -109,13 +123,16 @@ fn median_ms(v: &mut [f64]) -> f64 {
 }
 
 /// Times the inference engine on the walk motion for `frames` frames after a warm-up, then
-/// on a still body. `weights` are moved into the engine (as an application would).
+/// on a still body. `weights` are moved into the engine (as an application would). With
+/// `paired_floor`, a streaming read of a buffer the size of the f32 basis is timed after each
+/// timed frame, so the floor and the frames see the same machine load.
 pub fn bench_inference(
     avatar: &Avatar,
     garment: &Garment,
     weights: InferenceWeights,
     options: InferenceOptions,
     frames: usize,
+    paired_floor: bool,
 ) -> Result<InferenceBench, String> {
     let walk = bench_motion()?;
     let weight_bytes = weights.parameter_count() * 4;
@@ -130,8 +147,15 @@ pub fn bench_inference(
         0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
         n => n,
     };
+    let parallel = threads > 1 && garment.vertex_count() * 3 >= options.parallel_min_values;
+    // Allocated before the memory baseline: they are not part of the engine's peak.
+    let floor_data = paired_floor.then(|| floor_buffer(basis_f32_bytes));
+    let stored_floor_data = (paired_floor && options.basis_precision == Precision::F16)
+        .then(|| floor_buffer(basis_f32_bytes / 2));
+    let (mut floor_times, mut stored_floor_times) = (Vec::new(), Vec::new());
     reset_peak_rss();
     let before = rss_bytes();
+    let build_start = Instant::now();
     let mut engine = InferenceEngine::from_scene(
         weights,
         avatar,
@@ -141,6 +165,7 @@ pub fn bench_inference(
         options,
     )
     .map_err(|e| e.to_string())?;
+    let build_ms = build_start.elapsed().as_secs_f64() * 1e3;
     let frames = frames.max(1);
     let mut times = Vec::with_capacity(frames);
     let mut rows_read = 0.0;
@@ -155,9 +180,19 @@ pub fn bench_inference(
             times.push(start.elapsed().as_secs_f64());
             let h = engine.basis_input();
             rows_read += h.iter().filter(|v| **v != 0.0).count() as f64 / h.len().max(1) as f64;
+            // With two buffers, frames alternate between them.
+            match (&floor_data, &stored_floor_data) {
+                (_, Some(data)) if k % 2 == 1 => {
+                    stored_floor_times.push(read_pass_secs(data, threads))
+                }
+                (Some(data), _) => floor_times.push(read_pass_secs(data, threads)),
+                _ => {}
+            }
         }
     }
     let engine_peak_bytes = peak_rss_bytes().saturating_sub(before);
+    drop(floor_data);
+    drop(stored_floor_data);
     let Some(still_pose) = walk.frames.first() else {
         return Err("the benchmark motion has no frames".into());
     };
@@ -175,9 +210,12 @@ pub fn bench_inference(
     let still_ms = median_ms(&mut still);
     Ok(InferenceBench {
         dof: garment.vertex_count() * 3,
+        body_vertices: engine.body_positions().len(),
         model,
         precision,
         threads,
+        parallel,
+        build_ms,
         ms_per_frame: ms,
         fps: 1e3 / ms,
         still_fps: 1e3 / still_ms,
@@ -186,11 +224,14 @@ pub fn bench_inference(
         basis_bytes: engine.basis_bytes(),
         basis_f32_bytes,
         basis_rows_read: rows_read / frames as f64,
+        paired_floor_ms: (!floor_times.is_empty()).then(|| median_ms(&mut floor_times)),
+        paired_stored_floor_ms: (!stored_floor_times.is_empty())
+            .then(|| median_ms(&mut stored_floor_times)),
         engine_peak_bytes,
     })
 }
 
-/// How far the reduced-precision engine's meshes are from the f32 engine's.
+/// How far the reduced-precision engine's garment is from the f32 engine's.
 #[derive(Clone, Debug, Serialize)]
 pub struct PrecisionError {
     /// Degrees of freedom.
@@ -199,16 +240,35 @@ pub struct PrecisionError {
     pub precision: String,
     /// Frames compared (the walk, GRU state carried over, `w = 1`).
     pub frames: usize,
-    /// Largest distance between a garment vertex of the two engines, metres.
-    pub max_vertex_error_m: f64,
-    /// Mean distance over all vertices and frames, metres.
-    pub mean_vertex_error_m: f64,
+    /// Largest distance between the rest-space offsets of a vertex in the two engines (the
+    /// vertex error before skinning, which is nearly rigid), metres.
+    pub max_offset_error_m: f64,
+    /// Mean of that distance over all vertices and frames, metres.
+    pub mean_offset_error_m: f64,
+    /// Largest distance between posed garment vertices, metres. Besides the f16 error it holds
+    /// the f32 rounding of world coordinates (an ulp is 4.8e-7 m for coordinates of 4 m to
+    /// 8 m), so it cannot drop below a few 1e-7 m once the body walks away from the origin.
+    pub max_posed_error_m: f64,
     /// Largest offset magnitude of the f32 engine (the scale of the error), metres.
     pub max_offset_m: f64,
 }
 
+impl PrecisionError {
+    /// Largest offset error as a fraction of the largest offset (scale-free).
+    pub fn relative(&self) -> f64 {
+        self.max_offset_error_m / self.max_offset_m.max(1e-12)
+    }
+}
+
+fn norm3(v: &[f32]) -> f64 {
+    v.iter()
+        .map(|c| f64::from(*c) * f64::from(*c))
+        .sum::<f64>()
+        .sqrt()
+}
+
 /// Runs an f32 engine and one with `options`' precisions side by side over `frames` frames
-/// of the walk and measures the garment vertex error.
+/// of the walk and measures the garment error.
 pub fn measure_precision_error(
     avatar: &Avatar,
     garment: &Garment,
@@ -237,31 +297,37 @@ pub fn measure_precision_error(
     };
     let mut reference = build(weights.clone(), exact)?;
     let mut engine = build(weights, reduced)?;
-    let (mut max, mut sum, mut count, mut max_offset) = (0f64, 0f64, 0usize, 0f64);
+    let (mut max, mut sum, mut count, mut max_offset, mut max_posed) =
+        (0f64, 0f64, 0usize, 0f64, 0f64);
     for pose in walk.frames.iter().cycle().take(frames) {
         reference.step(pose, 1.0).map_err(|e| e.to_string())?;
         engine.step(pose, 1.0).map_err(|e| e.to_string())?;
+        for (a, b) in reference
+            .offsets()
+            .chunks_exact(3)
+            .zip(engine.offsets().chunks_exact(3))
+        {
+            let d = norm3(&[a[0] - b[0], a[1] - b[1], a[2] - b[2]]);
+            max = max.max(d);
+            sum += d;
+            count += 1;
+            max_offset = max_offset.max(norm3(a));
+        }
         for (a, b) in reference
             .garment_positions()
             .iter()
             .zip(engine.garment_positions())
         {
-            let d = f64::from((a - b).norm());
-            max = max.max(d);
-            sum += d;
-            count += 1;
-        }
-        for o in reference.offsets().chunks_exact(3) {
-            let n = (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]).sqrt();
-            max_offset = max_offset.max(f64::from(n));
+            max_posed = max_posed.max(f64::from((a - b).norm()));
         }
     }
     Ok(PrecisionError {
         dof: garment.vertex_count() * 3,
         precision,
         frames,
-        max_vertex_error_m: max,
-        mean_vertex_error_m: sum / count.max(1) as f64,
+        max_offset_error_m: max,
+        mean_offset_error_m: sum / count.max(1) as f64,
+        max_posed_error_m: max_posed,
         max_offset_m: max_offset,
     })
 }

@@ -87,7 +87,10 @@ pub struct CompiledNet {
 }
 
 fn dense_all(layers: Vec<DenseWeights>, precision: Precision) -> Vec<Dense> {
-    layers.into_iter().map(|l| Dense::new(l, precision)).collect()
+    layers
+        .into_iter()
+        .map(|l| Dense::new(l, precision))
+        .collect()
 }
 
 impl CompiledNet {

@@ -8,9 +8,15 @@
 //!
 //! Kernels: with AVX2, FMA and F16C (checked at run time) four active rows are fused per pass
 //! over an output block that stays in L1 (eight lanes per instruction, f16 converted by
-//! `vcvtph2ps`); elsewhere a portable loop computes the same sums.
+//! `vcvtph2ps`); elsewhere a portable loop computes the same sums. Linear blend skinning
+//! ([`skin_into`]) has an AVX2 kernel too: after the weights, it is the largest cost per frame.
 
 use serde::{Deserialize, Serialize};
+
+use crate::geometry::skinning::MAX_INFLUENCES;
+use crate::geometry::{SkinWeights, Vec3};
+
+use super::skinning::{MATRIX_FLOATS, skin_positions_into};
 
 /// Storage precision of a weight matrix. Arithmetic is always f32.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -41,51 +47,79 @@ impl Precision {
     }
 }
 
-/// Largest finite f16 value; matrices with larger weights stay in f32.
-const F16_MAX: f32 = 65504.0;
+/// Per-row scaling puts a row's largest weight in `[2^14, 2^15)`, well inside the f16 range
+/// (largest finite value 65504) and far above its subnormals (below 2^-14), so every row keeps
+/// f16's full 11-bit precision whatever its magnitude.
+const F16_ROW_TOP_EXPONENT: i32 = 14;
 
 /// Values converted per step of the in-place f16 conversion.
 const CONVERT_BLOCK: usize = 1024;
 
 /// Half-precision values (their bit patterns) packed two per `f32` slot of the buffer the
-/// matrix came in, so the conversion needs no second buffer of the matrix's size.
+/// matrix came in, so the conversion needs no second buffer of the matrix's size. Row `r` holds
+/// its weights multiplied by a power of two; `row_scale[r]` undoes it (exactly).
 #[derive(Clone, Debug, PartialEq)]
 struct HalfBuffer {
     words: Vec<f32>,
     len: usize,
+    row_scale: Vec<f32>,
+}
+
+/// The power of two that brings `max_abs` into `[2^14, 2^15)` (1 for zero or non-finite).
+fn row_exponent(max_abs: f32) -> i32 {
+    if max_abs > 0.0 && max_abs.is_finite() {
+        (F16_ROW_TOP_EXPONENT - max_abs.log2().floor() as i32).clamp(-100, 100)
+    } else {
+        0
+    }
 }
 
 impl HalfBuffer {
-    /// Converts `data` to f16 in place (round to nearest even) and gives the unused half of
-    /// the allocation back.
-    fn from_f32(mut data: Vec<f32>) -> Self {
+    /// Converts `data` (rows of `cols` values) to scaled f16 in place (round to nearest even)
+    /// and gives the unused half of the allocation back.
+    fn from_f32(mut data: Vec<f32>, cols: usize) -> Self {
         use half::slice::{HalfBitsSliceExt, HalfFloatSliceExt};
         let len = data.len();
+        let cols = cols.max(1);
+        let exponents: Vec<i32> = data
+            .chunks(cols)
+            .map(|row| row_exponent(row.iter().fold(0f32, |m, v| m.max(v.abs()))))
+            .collect();
         {
             let bits: &mut [u16] = bytemuck::cast_slice_mut(&mut data[..]);
             let mut block = [0f32; CONVERT_BLOCK];
-            let mut start = 0;
-            while start < len {
-                let n = CONVERT_BLOCK.min(len - start);
-                // Value `i` occupies u16 slots 2i, 2i+1 and its f16 goes to slot i: a whole block
-                // is read before any of it is written, and writes never pass the block's end.
-                let Some(src) = bits
-                    .get(2 * start..2 * (start + n))
-                    .and_then(|s| bytemuck::try_cast_slice::<u16, f32>(s).ok())
-                else {
-                    break;
-                };
-                block[..n].copy_from_slice(src);
-                if let Some(out) = bits.get_mut(start..start + n) {
-                    out.reinterpret_cast_mut::<half::f16>()
-                        .convert_from_f32_slice(&block[..n]);
+            for (r, &e) in exponents.iter().enumerate() {
+                let scale = 2f32.powi(e);
+                let row_end = ((r + 1) * cols).min(len);
+                let mut start = r * cols;
+                while start < row_end {
+                    let n = CONVERT_BLOCK.min(row_end - start);
+                    // Value `i` occupies u16 slots 2i, 2i+1 and its f16 goes to slot i: a block
+                    // is read before any of it is written, and writes never pass its end.
+                    let Some(src) = bits
+                        .get(2 * start..2 * (start + n))
+                        .and_then(|s| bytemuck::try_cast_slice::<u16, f32>(s).ok())
+                    else {
+                        break;
+                    };
+                    for (b, v) in block.iter_mut().zip(src) {
+                        *b = v * scale;
+                    }
+                    if let Some(out) = bits.get_mut(start..start + n) {
+                        out.reinterpret_cast_mut::<half::f16>()
+                            .convert_from_f32_slice(&block[..n]);
+                    }
+                    start += n;
                 }
-                start += n;
             }
         }
         data.truncate(len.div_ceil(2));
         data.shrink_to_fit();
-        Self { words: data, len }
+        Self {
+            words: data,
+            len,
+            row_scale: exponents.iter().map(|&e| 2f32.powi(-e)).collect(),
+        }
     }
 
     fn bits(&self) -> &[u16] {
@@ -110,13 +144,12 @@ pub struct Matrix {
 
 impl Matrix {
     /// Takes ownership of `data` (`rows * cols` values, row-major) and stores it at
-    /// `precision`, converting in place (no second copy). A matrix with a weight beyond the
-    /// f16 range stays in f32.
+    /// `precision`, converting in place (no second copy). At f16 each row is scaled by a power
+    /// of two so that its largest weight uses the top of the f16 range.
     pub fn new(rows: usize, cols: usize, data: Vec<f32>, precision: Precision) -> Self {
-        let fits_f16 = || data.iter().all(|v| v.abs() <= F16_MAX);
         let storage = match precision {
-            Precision::F16 if fits_f16() => Storage::F16(HalfBuffer::from_f32(data)),
-            _ => Storage::F32(data),
+            Precision::F16 => Storage::F16(HalfBuffer::from_f32(data, cols)),
+            Precision::F32 => Storage::F32(data),
         };
         Self {
             rows,
@@ -143,7 +176,7 @@ impl Matrix {
         }
     }
 
-    /// Bytes of weight storage.
+    /// Bytes of weight storage (an f16 matrix also keeps one f32 scale per row, not counted).
     pub fn bytes(&self) -> usize {
         self.rows * self.cols * self.precision().bytes()
     }
@@ -156,7 +189,7 @@ impl Matrix {
         let (x, y) = (&x[..rows], &mut y[..n]);
         match &self.storage {
             Storage::F32(w) => accumulate_f32(w, self.cols, x, col0, y),
-            Storage::F16(h) => accumulate_f16(h.bits(), self.cols, x, col0, y),
+            Storage::F16(h) => accumulate_f16(h.bits(), &h.row_scale, self.cols, x, col0, y),
         }
     }
 }
@@ -181,38 +214,105 @@ fn accumulate_f32(w: &[f32], cols: usize, x: &[f32], col0: usize, y: &mut [f32])
     if simd_available() && w.len() >= x.len() * cols && col0 + y.len() <= cols {
         // SAFETY: the features were detected and every row slice `[r*cols + col0, +y.len())`
         // with `r < x.len()` lies inside `w` (checked just above).
-        unsafe { avx2::accumulate_f32(w, cols, x, col0, y) };
+        unsafe { avx2::accumulate_f32(w, &[], cols, x, col0, y) };
         return;
     }
+    accumulate_portable(w, &[], cols, x, col0, y, |v| v);
+}
+
+/// As `accumulate_f32` for f16 bit patterns whose row `r` is scaled by `1 / row_scale[r]`.
+fn accumulate_f16(
+    w: &[u16],
+    row_scale: &[f32],
+    cols: usize,
+    x: &[f32],
+    col0: usize,
+    y: &mut [f32],
+) {
+    debug_assert!(w.len() >= x.len() * cols && col0 + y.len() <= cols);
+    #[cfg(target_arch = "x86_64")]
+    if simd_available() && w.len() >= x.len() * cols && col0 + y.len() <= cols {
+        // SAFETY: as in `accumulate_f32`.
+        unsafe { avx2::accumulate_f16(w, row_scale, cols, x, col0, y) };
+        return;
+    }
+    accumulate_portable(w, row_scale, cols, x, col0, y, |v| {
+        half::f16::from_bits(v).to_f32()
+    });
+}
+
+/// The kernel without SIMD intrinsics: row by row, skipping zero inputs; row `r`'s input is
+/// multiplied by `row_scale[r]` when there is one.
+fn accumulate_portable<T: Copy>(
+    w: &[T],
+    row_scale: &[f32],
+    cols: usize,
+    x: &[f32],
+    col0: usize,
+    y: &mut [f32],
+    to_f32: impl Fn(T) -> f32,
+) {
     for (r, &xi) in x.iter().enumerate() {
         let start = r * cols + col0;
         if xi != 0.0
             && let Some(row) = w.get(start..start + y.len())
         {
+            let c = row_scale.get(r).map_or(xi, |s| xi * s);
             for (yo, &wo) in y.iter_mut().zip(row) {
-                *yo += xi * wo;
+                *yo += c * to_f32(wo);
             }
         }
     }
 }
 
-fn accumulate_f16(w: &[u16], cols: usize, x: &[f32], col0: usize, y: &mut [f32]) {
-    debug_assert!(w.len() >= x.len() * cols && col0 + y.len() <= cols);
+/// Linear blend skinning of flat rest positions `[V * 3]` with 3x4 row-major joint matrices
+/// (`MATRIX_FLOATS` per joint) into `out`: [`super::skinning::skin_positions_into`] with the
+/// AVX2 kernel when available. Influences with weight 0 or a joint outside `matrices` add
+/// nothing.
+pub fn skin_into(
+    rest: &[f32],
+    joint_index: &[[u16; MAX_INFLUENCES]],
+    weights: &[[f32; MAX_INFLUENCES]],
+    matrices: &[f32],
+    out: &mut [Vec3],
+) {
     #[cfg(target_arch = "x86_64")]
-    if simd_available() && w.len() >= x.len() * cols && col0 + y.len() <= cols {
-        // SAFETY: as in `accumulate_f32`.
-        unsafe { avx2::accumulate_f16(w, cols, x, col0, y) };
+    if simd_available() {
+        // SAFETY: the features were detected; the kernel bounds-checks joint indices.
+        unsafe { avx2::skin(rest, joint_index, weights, matrices, out) };
         return;
     }
-    for (r, &xi) in x.iter().enumerate() {
-        let start = r * cols + col0;
-        if xi != 0.0
-            && let Some(row) = w.get(start..start + y.len())
-        {
-            for (yo, &wo) in y.iter_mut().zip(row) {
-                *yo += xi * half::f16::from_bits(wo).to_f32();
-            }
+    skin_positions_into(rest, joint_index, weights, matrices, out);
+}
+
+/// What every chunk of the fused garment pass reads.
+pub struct GarmentChunk<'a> {
+    /// The basis `[decoder width, V * 3]`.
+    pub basis: &'a Matrix,
+    /// Basis coefficients (decoder output).
+    pub h: &'a [f32],
+    /// Template `[V * 3]`, rest space.
+    pub template: &'a [f32],
+    /// Garment skin weights.
+    pub skin: &'a SkinWeights,
+    /// Skinning matrices, 3x4 row-major per joint.
+    pub mats: &'a [f32],
+}
+
+impl GarmentChunk<'_> {
+    /// Offsets, rest positions and posed positions of the vertices from `v0` on (as many as
+    /// `posed` holds; `offsets` and `rest` hold three values per vertex).
+    pub fn run(&self, v0: usize, offsets: &mut [f32], rest: &mut [f32], posed: &mut [Vec3]) {
+        let n = posed.len();
+        offsets.fill(0.0);
+        self.basis.accumulate(self.h, 3 * v0, offsets);
+        let template = self.template.get(3 * v0..3 * (v0 + n)).unwrap_or(&[]);
+        for ((r, t), o) in rest.iter_mut().zip(template).zip(offsets.iter()) {
+            *r = t + o;
         }
+        let joints = self.skin.joints.get(v0..v0 + n).unwrap_or(&[]);
+        let weights = self.skin.weights.get(v0..v0 + n).unwrap_or(&[]);
+        skin_into(rest, joints, weights, self.mats, posed);
     }
 }
 
@@ -223,16 +323,89 @@ mod avx2 {
 
     use std::arch::x86_64::*;
 
+    use super::{MATRIX_FLOATS, MAX_INFLUENCES, Vec3};
+
+    /// Skinning, one vertex per iteration: the blended 3x4 matrix lives in one 8-lane and one
+    /// 4-lane register; the four influences are blended without branches (an unused or
+    /// out-of-range influence blends joint 0 with weight 0, which adds exactly zero).
+    ///
+    /// # Safety
+    /// AVX2 and FMA must be available.
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn skin(
+        rest: &[f32],
+        joint_index: &[[u16; MAX_INFLUENCES]],
+        weights: &[[f32; MAX_INFLUENCES]],
+        matrices: &[f32],
+        out: &mut [Vec3],
+    ) {
+        let joints = matrices.len() / MATRIX_FLOATS;
+        if joints == 0 {
+            out.iter_mut()
+                .zip(rest.chunks_exact(3))
+                .for_each(|(o, _)| *o = Vec3::zeros());
+            return;
+        }
+        let m = matrices.as_ptr();
+        for (((p, js), ws), o) in rest
+            .chunks_exact(3)
+            .zip(joint_index)
+            .zip(weights)
+            .zip(out.iter_mut())
+        {
+            // Two partial sums (influences 0, 2 and 1, 3) halve the dependency chain.
+            let mut rows01 = [_mm256_setzero_ps(); 2];
+            let mut row2 = [_mm_setzero_ps(); 2];
+            for (k, (&j, &w)) in js.iter().zip(ws).enumerate() {
+                let used = w != 0.0 && (j as usize) < joints;
+                let j = if used { j as usize } else { 0 };
+                let wv = _mm256_set1_ps(if used { w } else { 0.0 });
+                // SAFETY: `j < joints`, so the 12 floats of matrix `j` are inside `matrices`.
+                unsafe {
+                    let mj = m.add(j * MATRIX_FLOATS);
+                    rows01[k % 2] = _mm256_fmadd_ps(wv, _mm256_loadu_ps(mj), rows01[k % 2]);
+                    row2[k % 2] = _mm_fmadd_ps(
+                        _mm256_castps256_ps128(wv),
+                        _mm_loadu_ps(mj.add(8)),
+                        row2[k % 2],
+                    );
+                }
+            }
+            let rows01 = _mm256_add_ps(rows01[0], rows01[1]);
+            let row2 = _mm_add_ps(row2[0], row2[1]);
+            let p1 = _mm_setr_ps(p[0], p[1], p[2], 1.0);
+            let prod01 = _mm256_mul_ps(rows01, _mm256_set_m128(p1, p1));
+            let prod2 = _mm_mul_ps(row2, p1);
+            let pairs = _mm_hadd_ps(
+                _mm256_castps256_ps128(prod01),
+                _mm256_extractf128_ps(prod01, 1),
+            );
+            let xyz = _mm_hadd_ps(pairs, _mm_hadd_ps(prod2, prod2));
+            let mut lanes = [0f32; 4];
+            // SAFETY: `lanes` holds four floats.
+            unsafe { _mm_storeu_ps(lanes.as_mut_ptr(), xyz) };
+            *o = Vec3::new(lanes[0], lanes[1], lanes[2]);
+        }
+    }
+
     /// Stamps out `accumulate_<type>` for a storage type and its 8-lane load.
     macro_rules! accumulate_kernel {
         ($name:ident, $t:ty, $load8:expr, $to_f32:expr) => {
-            /// `y += x W[:, col0..col0 + y.len()]` over the rows with nonzero `x`.
+            /// `y += x W[:, col0..col0 + y.len()]` over the rows with nonzero `x`, row `r`'s
+            /// input multiplied by `row_scale[r]` when there is one.
             ///
             /// # Safety
             /// AVX2, FMA and F16C must be available, and `w` must hold `x.len()` rows of `cols`
             /// values with `col0 + y.len() <= cols`.
             #[target_feature(enable = "avx2,fma,f16c")]
-            pub unsafe fn $name(w: &[$t], cols: usize, x: &[f32], col0: usize, y: &mut [f32]) {
+            pub unsafe fn $name(
+                w: &[$t],
+                row_scale: &[f32],
+                cols: usize,
+                x: &[f32],
+                col0: usize,
+                y: &mut [f32],
+            ) {
                 let n = y.len();
                 let load8 = $load8;
                 let to_f32 = $to_f32;
@@ -247,7 +420,7 @@ mod avx2 {
                     }
                     // SAFETY: row `r` starts at `r * cols` inside `w` (caller's contract).
                     rows[pending] = unsafe { base.add(r * cols + col0) };
-                    coef[pending] = xi;
+                    coef[pending] = row_scale.get(r).map_or(xi, |s| xi * s);
                     pending += 1;
                     if pending < 4 {
                         continue;
@@ -287,7 +460,8 @@ mod avx2 {
                     // SAFETY: as above.
                     unsafe {
                         while k + 8 <= n {
-                            let acc = _mm256_fmadd_ps(a, load8(p.add(k)), _mm256_loadu_ps(yp.add(k)));
+                            let acc =
+                                _mm256_fmadd_ps(a, load8(p.add(k)), _mm256_loadu_ps(yp.add(k)));
                             _mm256_storeu_ps(yp.add(k), acc);
                             k += 8;
                         }
@@ -338,15 +512,36 @@ mod tests {
     }
 
     #[test]
-    fn f16_conversion_in_place_rounds_to_nearest_and_frees_half() {
+    fn f16_conversion_in_place_scales_rows_rounds_to_nearest_and_frees_half() {
         let mut s = 3;
-        for len in [0, 1, 2, 7, 1023, 1024, 1025, 5000] {
-            let data: Vec<f32> = (0..len).map(|_| lcg(&mut s) * 3.0).collect();
-            let h = HalfBuffer::from_f32(data.clone());
+        for (len, cols) in [
+            (0, 1),
+            (1, 1),
+            (2, 2),
+            (7, 3),
+            (1023, 1023),
+            (3000, 1500),
+            (5000, 7),
+        ] {
+            // Rows of very different magnitudes: each must keep f16's relative precision.
+            let data: Vec<f32> = (0..len)
+                .map(|i| lcg(&mut s) * 10f32.powi((i / cols) as i32 % 9 - 6))
+                .collect();
+            let h = HalfBuffer::from_f32(data.clone(), cols);
             assert_eq!(h.bits().len(), len);
+            assert_eq!(h.row_scale.len(), len.div_ceil(cols));
             assert!(h.words.capacity() <= len.div_ceil(2) + 1);
-            for (b, v) in h.bits().iter().zip(&data) {
-                assert_eq!(*b, half::f16::from_f32(*v).to_bits(), "len {len}");
+            for (i, (b, v)) in h.bits().iter().zip(&data).enumerate() {
+                let scale = h.row_scale[i / cols];
+                assert_eq!(*b, half::f16::from_f32(v / scale).to_bits(), "len {len}");
+                let back = half::f16::from_bits(*b).to_f32() * scale;
+                let row_max = data[i / cols * cols..((i / cols + 1) * cols).min(len)]
+                    .iter()
+                    .fold(0f32, |m, v| m.max(v.abs()));
+                assert!(
+                    (back - v).abs() <= row_max * 2f32.powi(-11),
+                    "{back} vs {v}"
+                );
             }
         }
     }
@@ -354,7 +549,12 @@ mod tests {
     #[test]
     fn kernels_match_a_double_precision_reference() {
         let mut s = 11;
-        for (rows, cols, col0, n) in [(13, 40, 0, 40), (64, 100, 7, 61), (5, 9, 8, 1), (9, 33, 0, 33)] {
+        for (rows, cols, col0, n) in [
+            (13, 40, 0, 40),
+            (64, 100, 7, 61),
+            (5, 9, 8, 1),
+            (9, 33, 0, 33),
+        ] {
             let w: Vec<f32> = (0..rows * cols).map(|_| lcg(&mut s)).collect();
             // Every third input is zero: those rows must be skipped without effect.
             let x: Vec<f32> = (0..rows)
@@ -367,7 +567,15 @@ mod tests {
             for (a, b) in y.iter().zip(&expected) {
                 assert!((a - b).abs() < 1e-5, "f32 {rows}x{cols}: {a} vs {b}");
             }
-            let rounded: Vec<f32> = w.iter().map(|v| half::f16::from_f32(*v).to_f32()).collect();
+            let rounded: Vec<f32> = w
+                .chunks(cols)
+                .flat_map(|row| {
+                    let e = row_exponent(row.iter().fold(0f32, |m, v| m.max(v.abs())));
+                    row.iter().map(move |v| {
+                        half::f16::from_f32(v * 2f32.powi(e)).to_f32() * 2f32.powi(-e)
+                    })
+                })
+                .collect();
             let expected16 = reference(&rounded, cols, &x, col0, n);
             let m16 = Matrix::new(rows, cols, w, Precision::F16);
             assert_eq!(m16.precision(), Precision::F16);
@@ -375,19 +583,80 @@ mod tests {
             let mut y = vec![1.0; n];
             m16.accumulate(&x, col0, &mut y);
             for (a, b) in y.iter().zip(&expected16) {
-                assert!((a - 1.0 - b).abs() < 1e-5, "f16 {rows}x{cols}: {a} vs 1 + {b}");
+                assert!(
+                    (a - 1.0 - b).abs() < 1e-5,
+                    "f16 {rows}x{cols}: {a} vs 1 + {b}"
+                );
             }
         }
     }
 
     #[test]
-    fn out_of_range_weights_stay_f32_and_bad_sizes_do_not_overrun() {
-        let m = Matrix::new(1, 2, vec![1.0, 1e6], Precision::F16);
-        assert_eq!(m.precision(), Precision::F32);
+    fn portable_and_simd_kernels_agree() {
+        let mut s = 17;
+        let (rows, cols) = (23, 45);
+        let w: Vec<f32> = (0..rows * cols).map(|_| lcg(&mut s)).collect();
+        let x: Vec<f32> = (0..rows)
+            .map(|r| if r % 4 == 0 { 0.0 } else { lcg(&mut s) })
+            .collect();
+        let h: Vec<u16> = w
+            .iter()
+            .map(|v| half::f16::from_f32(*v).to_bits())
+            .collect();
+        for col0 in [0, 3, 20] {
+            let n = cols - col0;
+            let (mut a, mut b) = (vec![0.5; n], vec![0.5; n]);
+            accumulate_portable(&w, &[], cols, &x, col0, &mut a, |v| v);
+            accumulate_f32(&w, cols, &x, col0, &mut b);
+            assert!(a.iter().zip(&b).all(|(p, q)| (p - q).abs() < 1e-5));
+            let (mut a, mut b) = (vec![0.5; n], vec![0.5; n]);
+            let scale: Vec<f32> = (0..rows).map(|r| 0.5 + r as f32).collect();
+            accumulate_portable(&h, &scale, cols, &x, col0, &mut a, |v| {
+                half::f16::from_bits(v).to_f32()
+            });
+            accumulate_f16(&h, &scale, cols, &x, col0, &mut b);
+            assert!(a.iter().zip(&b).all(|(p, q)| (p - q).abs() < 1e-5));
+        }
+    }
+
+    #[test]
+    fn simd_skinning_matches_the_reference() {
+        let mut s = 5;
+        let joints = 7;
+        let mats: Vec<f32> = (0..joints * MATRIX_FLOATS).map(|_| lcg(&mut s)).collect();
+        let n = 37;
+        let rest: Vec<f32> = (0..3 * n).map(|_| lcg(&mut s)).collect();
+        // Unused slots (weight 0) and a joint index past the matrices must add nothing.
+        let idx: Vec<[u16; 4]> = (0..n as u16)
+            .map(|v| [v % 7, (v + 3) % 7, 9, v % 5])
+            .collect();
+        let w: Vec<[f32; 4]> = (0..n)
+            .map(|v| [0.5, 0.25, 0.25, if v % 2 == 0 { 0.0 } else { 0.1 }])
+            .collect();
+        let mut expected = vec![Vec3::zeros(); n];
+        skin_positions_into(&rest, &idx, &w, &mats, &mut expected);
+        let mut got = vec![Vec3::zeros(); n];
+        skin_into(&rest, &idx, &w, &mats, &mut got);
+        for (a, b) in got.iter().zip(&expected) {
+            assert!((a - b).norm() < 1e-5, "{a:?} vs {b:?}");
+        }
+    }
+
+    #[test]
+    fn large_and_tiny_weights_survive_f16_and_bad_sizes_do_not_overrun() {
+        let m = Matrix::new(2, 2, vec![1.0, 1e6, 3e-7, -1e-7], Precision::F16);
+        assert_eq!(m.precision(), Precision::F16);
         let mut y = vec![0.0; 5];
         m.accumulate(&[2.0, 3.0], 1, &mut y);
-        assert_eq!(y, [2e6, 0.0, 0.0, 0.0, 0.0]);
+        assert!((y[0] - (2e6 - 3e-7)).abs() < 2e6 * 1e-3, "{}", y[0]);
+        assert_eq!(&y[1..], [0.0; 4]);
+        let mut y = vec![0.0; 2];
+        m.accumulate(&[0.0, 1.0], 0, &mut y);
+        assert!(
+            (y[0] - 3e-7).abs() < 3e-10 && (y[1] + 1e-7).abs() < 1e-10,
+            "{y:?}"
+        );
         m.accumulate(&[1.0], 3, &mut y);
-        assert_eq!(y[0], 2e6);
+        assert!((y[0] - 3e-7).abs() < 3e-10);
     }
 }

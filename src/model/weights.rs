@@ -108,8 +108,8 @@ impl DenseWeights {
         }
     }
 
-    /// Columns `[col0, col0 + y.len())` of `x W + b`: the blocked kernel of the basis product,
-    /// so a chunk of the output stays in cache while the weight rows stream past.
+    /// Columns `[col0, col0 + y.len())` of `x W + b`, blocked by rows (the plain reference
+    /// form; the inference engine runs [`super::kernels::Matrix::accumulate`]).
     pub fn forward_columns(&self, x: &[f32], col0: usize, y: &mut [f32]) {
         let n = y.len();
         match &self.bias {

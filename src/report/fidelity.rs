@@ -22,12 +22,17 @@ use std::sync::Arc;
 
 use crate::physics::simulator::{SimOptions, StepInput, Stepper};
 use crate::physics::{FabricParams, GarmentRest, PosedBody};
-use crate::scene::config::{AvatarSource, BuiltinAvatar, Effects, GarmentSource, MotionSource, SceneConfig, Split};
+use crate::scene::config::{
+    AvatarSource, BuiltinAvatar, Effects, GarmentSource, MotionSource, SceneConfig, Split,
+};
 use crate::scene::procedural::{GarmentKind, MotionKind, build_builtin};
 use crate::scene::{Pose, Scene};
 use crate::train::{BackendKind, InertiaMode, MetricRecord, TrainConfig, device_for};
 
-use super::runs::{RunOutcome, RunSpec, RunSummary, engine_for, mean_distance_m, max_distance_m, poses_at, predict, train_run};
+use super::runs::{
+    RunOutcome, RunSpec, RunSummary, engine_for, max_distance_m, mean_distance_m, poses_at,
+    predict, train_run,
+};
 use super::{Progress, ProgressFn, ReportError};
 
 /// Settings of the fidelity experiments.
@@ -89,6 +94,10 @@ pub struct SkirtSpin {
     pub snug_m: Vec<f32>,
     /// Our static prediction (`w = 0`).
     pub static_m: Vec<f32>,
+    /// The SNUG-style network's static prediction (`w = 0`).
+    pub snug_static_m: Vec<f32>,
+    /// The template skinned with the body (no network offsets), the drape-free baseline.
+    pub skinned_m: Vec<f32>,
     /// The reference simulator (may stop early when over budget).
     pub reference_m: Vec<f32>,
     /// Iterations per frame of the reference.
@@ -99,14 +108,22 @@ pub struct SkirtSpin {
     pub mean_ours_m: f64,
     /// SNUG-style.
     pub mean_snug_m: f64,
-    /// Static prediction.
+    /// Our static prediction.
     pub mean_static_m: f64,
+    /// The SNUG-style network's static prediction.
+    pub mean_snug_static_m: f64,
+    /// The skinned template.
+    pub mean_skinned_m: f64,
     /// Reference simulator (`None` when it did not reach the window within the budget).
     pub mean_reference_m: Option<f64>,
     /// Hem vertices used.
     pub hem_vertices: usize,
+    /// The ours run.
+    pub ours_run: RunSummary,
     /// The SNUG-style run.
     pub snug_run: RunSummary,
+    /// Seconds of the spin the reference simulator reached (it stops when over budget).
+    pub reference_until_secs: f32,
 }
 
 /// Everything the fidelity experiments measured.
@@ -116,11 +133,13 @@ pub struct FidelityResult {
     pub vertices: usize,
     /// Training motions and the validation motion.
     pub motions: String,
-    /// Seconds of each training run.
-    pub run_budget_secs: f64,
+    /// Seconds of each ablation run.
+    pub ablation_run_secs: f64,
+    /// Seconds of the ours and SNUG-style runs.
+    pub spin_run_secs: f64,
     /// The ablation, Tab. 2 order.
     pub ablation: Vec<AblationRow>,
-    /// Disentanglement checks on the "+Aug. motions" (= ours) model.
+    /// Disentanglement checks on the "ours" model (the "+Aug. motions" setup, trained longer).
     pub disentanglement: Disentanglement,
     /// SNUG-style against ours on the spin.
     pub skirt: SkirtSpin,
@@ -130,12 +149,27 @@ pub struct FidelityResult {
 
 /// The fidelity scene: built-in skirt at `resolution`, idle/walk/spin to train, turn to
 /// validate.
-pub fn fidelity_scene(resolution: usize, spin_secs: f32) -> Result<(Scene, SceneConfig), ReportError> {
-    let m = |builtin, duration_secs, split| MotionSource::Builtin { builtin, duration_secs, fps: None, split, name: None };
+pub fn fidelity_scene(
+    resolution: usize,
+    spin_secs: f32,
+) -> Result<(Scene, SceneConfig), ReportError> {
+    let m = |builtin, duration_secs, split| MotionSource::Builtin {
+        builtin,
+        duration_secs,
+        fps: None,
+        split,
+        name: None,
+    };
     let config = SceneConfig {
         name: "fidelity skirt".into(),
-        avatar: AvatarSource::Builtin { builtin: BuiltinAvatar::Mannequin },
-        garment: GarmentSource::Builtin { builtin: GarmentKind::Skirt, resolution, smoothing_passes: None },
+        avatar: AvatarSource::Builtin {
+            builtin: BuiltinAvatar::Mannequin,
+        },
+        garment: GarmentSource::Builtin {
+            builtin: GarmentKind::Skirt,
+            resolution,
+            smoothing_passes: None,
+        },
         motions: vec![
             m(MotionKind::Idle, 2.0, Split::Train),
             m(MotionKind::Walk, 3.0, Split::Train),
@@ -152,47 +186,90 @@ pub fn fidelity_scene(resolution: usize, spin_secs: f32) -> Result<(Scene, Scene
 /// Mean horizontal distance of the `hem` vertices from the root joint's vertical axis, metres.
 fn hem_radius(scene: &Scene, pose: &Pose, garment: &[Vec3], hem: &[usize]) -> f32 {
     let world = scene.avatar.skeleton.world_from_joint(pose);
-    let Some(root) = world.first() else { return 0.0 };
+    let Some(root) = world.first() else {
+        return 0.0;
+    };
     let (cx, cz) = (root[(0, 3)], root[(2, 3)]);
-    let sum: f32 = hem.iter().filter_map(|&i| garment.get(i)).map(|p| ((p.x - cx).powi(2) + (p.z - cz).powi(2)).sqrt()).sum();
+    let sum: f32 = hem
+        .iter()
+        .filter_map(|&i| garment.get(i))
+        .map(|p| ((p.x - cx).powi(2) + (p.z - cz).powi(2)).sqrt())
+        .sum();
     sum / hem.len().max(1) as f32
 }
 
 /// Vertices in the lowest 15% of the template's height.
 fn hem_vertices(scene: &Scene) -> Vec<usize> {
     let ys: Vec<f32> = scene.garment.mesh.positions.iter().map(|p| p.y).collect();
-    let (lo, hi) = ys.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &y| (a.min(y), b.max(y)));
+    let (lo, hi) = ys
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &y| {
+            (a.min(y), b.max(y))
+        });
     let cut = lo + 0.15 * (hi - lo);
-    ys.iter().enumerate().filter(|(_, y)| **y <= cut).map(|(i, _)| i).collect()
+    ys.iter()
+        .enumerate()
+        .filter(|(_, y)| **y <= cut)
+        .map(|(i, _)| i)
+        .collect()
 }
 
 /// Mean of `values` at `times` inside `window`; `None` when no frame falls inside.
 fn window_mean(times: &[f32], values: &[f32], window: (f32, f32)) -> Option<f64> {
-    let picked: Vec<f64> = times.iter().zip(values).filter(|(t, _)| **t >= window.0 && **t <= window.1).map(|(_, v)| f64::from(*v)).collect();
+    let picked: Vec<f64> = times
+        .iter()
+        .zip(values)
+        .filter(|(t, _)| **t >= window.0 && **t <= window.1)
+        .map(|(_, v)| f64::from(*v))
+        .collect();
     (!picked.is_empty()).then(|| picked.iter().sum::<f64>() / picked.len() as f64)
 }
 
-/// The reference simulator over `poses` (after settling 0.3 s on the first), stopping early
+/// The reference simulator over `poses` (after settling 0.5 s on the first), stopping early
 /// when `budget_secs` is spent.
-fn reference_spin(scene: &Scene, poses: &[Pose], fps: f32, iterations: usize, budget_secs: f64, progress: &mut ProgressFn<'_>) -> Result<Vec<Vec<Vec3>>, ReportError> {
+fn reference_spin(
+    scene: &Scene,
+    poses: &[Pose],
+    fps: f32,
+    iterations: usize,
+    budget_secs: f64,
+    progress: &mut ProgressFn<'_>,
+) -> Result<Vec<Vec<Vec3>>, ReportError> {
     let started = Instant::now();
-    let Some(first) = poses.first() else { return Ok(Vec::new()) };
+    let Some(first) = poses.first() else {
+        return Ok(Vec::new());
+    };
     let fabric = FabricParams::from_table(&scene.fabric)?;
     let rest = Arc::new(GarmentRest::from_garment(&scene.garment, &fabric)?);
-    let options = SimOptions { iterations_per_step: iterations, ..SimOptions::default() };
+    let options = SimOptions {
+        iterations_per_step: iterations,
+        ..SimOptions::default()
+    };
     let device = device_for(BackendKind::Cpu, false);
     let initial = scene.garment.pose_vertices(&scene.avatar, first);
-    let mut stepper = Stepper::new(rest, &fabric, &scene.effects, &initial, 1.0 / fps, &options, &device)?;
+    let mut stepper = Stepper::new(
+        rest,
+        &fabric,
+        &scene.effects,
+        &initial,
+        1.0 / fps,
+        &options,
+        &device,
+    )?;
     let input = |pose: &Pose| -> Result<StepInput, ReportError> {
         let body = match scene.effects.collision {
             true => Some(Arc::new(PosedBody::from_avatar(&scene.avatar, pose)?)),
             false => None,
         };
-        let pins = (scene.effects.pinning && !scene.garment.pinned.is_empty()).then(|| scene.garment.pose_vertices(&scene.avatar, pose));
-        Ok(StepInput { body, pin_targets: pins })
+        let pins = (scene.effects.pinning && !scene.garment.pinned.is_empty())
+            .then(|| scene.garment.pose_vertices(&scene.avatar, pose));
+        Ok(StepInput {
+            body,
+            pin_targets: pins,
+        })
     };
     let settle = input(first)?;
-    for _ in 0..(0.3 * fps).round() as usize {
+    for _ in 0..(0.5 * fps).round() as usize {
         stepper.step(&settle)?;
     }
     let mut frames = Vec::with_capacity(poses.len());
@@ -202,7 +279,11 @@ fn reference_spin(scene: &Scene, poses: &[Pose], fps: f32, iterations: usize, bu
         }
         frames.push(stepper.step(&input(pose)?)?.0);
         let fraction = 0.88 + 0.12 * (k + 1) as f64 / poses.len() as f64;
-        if !progress(&Progress { phase: "fidelity".into(), fraction, detail: "reference simulation of the spin".into() }) {
+        if !progress(&Progress {
+            phase: "fidelity".into(),
+            fraction,
+            detail: "reference simulation of the spin".into(),
+        }) {
             return Err(ReportError::Cancelled);
         }
     }
@@ -211,42 +292,126 @@ fn reference_spin(scene: &Scene, poses: &[Pose], fps: f32, iterations: usize, bu
 
 /// Runs the ablation, the SNUG comparison and the disentanglement checks within
 /// `options.budget_secs`. `progress` sees 0..1; returning false cancels.
-pub fn run_fidelity(options: &FidelityOptions, progress: &mut ProgressFn<'_>) -> Result<FidelityResult, ReportError> {
+pub fn run_fidelity(
+    options: &FidelityOptions,
+    progress: &mut ProgressFn<'_>,
+) -> Result<FidelityResult, ReportError> {
     let started = Instant::now();
     let (scene, config) = fidelity_scene(options.resolution, options.spin_secs)?;
     let fps = scene.training_fps;
-    // Five runs share 88% of the budget; the reference spin and the checks get the rest.
-    let run_budget = 0.88 * options.budget_secs / 5.0;
-    let base = TrainConfig { fps, seed: options.seed, batch_size: 16, window_secs: 0.5, ..TrainConfig::default() };
-    let variants: [(&str, EncoderKind, bool, f32, InertiaMode); 5] = [
-        ("Entangled", EncoderKind::Entangled, false, 0.0, InertiaMode::Ours),
-        ("Disentangled", EncoderKind::Disentangled, false, 0.0, InertiaMode::Ours),
-        ("+Mirror", EncoderKind::Disentangled, true, 0.0, InertiaMode::Ours),
-        ("+Aug. motions", EncoderKind::Disentangled, true, 0.2, InertiaMode::Ours),
-        ("SNUG-style inertia", EncoderKind::Disentangled, true, 0.2, InertiaMode::Snug),
+    // Four ablation runs share 44% of the budget, ours and SNUG-style (longer, so that
+    // dynamics have time to appear) 44%; the reference spin and the checks get the rest.
+    let ablation_budget = 0.44 * options.budget_secs / 4.0;
+    let spin_budget = 0.44 * options.budget_secs / 2.0;
+    let base = TrainConfig {
+        fps,
+        seed: options.seed,
+        batch_size: 16,
+        window_secs: 0.5,
+        ..TrainConfig::default()
+    };
+    let variants: [(&str, EncoderKind, bool, f32, InertiaMode, f64); 6] = [
+        (
+            "Entangled",
+            EncoderKind::Entangled,
+            false,
+            0.0,
+            InertiaMode::Ours,
+            ablation_budget,
+        ),
+        (
+            "Disentangled",
+            EncoderKind::Disentangled,
+            false,
+            0.0,
+            InertiaMode::Ours,
+            ablation_budget,
+        ),
+        (
+            "+Mirror",
+            EncoderKind::Disentangled,
+            true,
+            0.0,
+            InertiaMode::Ours,
+            ablation_budget,
+        ),
+        (
+            "+Aug. motions",
+            EncoderKind::Disentangled,
+            true,
+            0.2,
+            InertiaMode::Ours,
+            ablation_budget,
+        ),
+        (
+            "ours",
+            EncoderKind::Disentangled,
+            true,
+            0.2,
+            InertiaMode::Ours,
+            spin_budget,
+        ),
+        (
+            "SNUG-style inertia",
+            EncoderKind::Disentangled,
+            true,
+            0.2,
+            InertiaMode::Snug,
+            spin_budget,
+        ),
     ];
+    let total: f64 = variants.iter().map(|v| v.5).sum::<f64>().max(1e-9);
     let mut outcomes: Vec<RunOutcome> = Vec::new();
-    for (k, (label, encoder, mirror, aug, inertia)) in variants.into_iter().enumerate() {
+    let mut start = 0.0;
+    for (label, encoder, mirror, aug, inertia, budget_secs) in variants {
         let spec = RunSpec {
             label: label.into(),
             scene: scene.clone(),
             config: Some(config.clone()),
-            train: TrainConfig { mirror_poses: mirror, augmentation_fraction: aug, inertia_mode: inertia, ..base.clone() },
-            model: crate::model::ClothNetConfig { encoder, ..Default::default() },
-            budget_secs: run_budget,
+            train: TrainConfig {
+                mirror_poses: mirror,
+                augmentation_fraction: aug,
+                inertia_mode: inertia,
+                ..base.clone()
+            },
+            model: crate::model::ClothNetConfig {
+                encoder,
+                ..Default::default()
+            },
+            budget_secs,
             min_steps: 2,
             validations: 8,
             snapshot_fractions: Vec::new(),
         };
-        let run = train_run(spec, &mut |f| progress(&Progress { phase: "fidelity".into(), fraction: 0.85 * (k as f64 + f) / 5.0, detail: format!("training '{label}'") }))?;
+        let span = 0.88 * budget_secs / total;
+        let run = train_run(spec, &mut |f| {
+            progress(&Progress {
+                phase: "fidelity".into(),
+                fraction: start + span * f,
+                detail: format!("training '{label}'"),
+            })
+        })?;
+        start += span;
         outcomes.push(run);
     }
-    let (Some(ours), Some(snug)) = (outcomes.get(3), outcomes.get(4)) else {
+    let (Some(ours), Some(snug)) = (outcomes.get(4), outcomes.get(5)) else {
         return Err(ReportError::Invalid("fidelity runs missing".into()));
     };
-    let ablation = outcomes.iter().take(4).map(|o| AblationRow { label: o.label.clone(), validation: o.validation, run: o.summary() }).collect();
+    let ablation = outcomes
+        .iter()
+        .take(4)
+        .map(|o| AblationRow {
+            label: o.label.clone(),
+            validation: o.validation,
+            run: o.summary(),
+        })
+        .collect();
     let disentanglement = disentangle(&scene, ours, fps)?;
-    if !progress(&Progress { phase: "fidelity".into(), fraction: 0.88, detail: "skirt under the spin".into() }) {
+    if !progress(&Progress {
+        phase: "fidelity".into(),
+        fraction: 0.88,
+        detail: "skirt under the spin".into(),
+    }) {
         return Err(ReportError::Cancelled);
     }
     let left = (options.budget_secs - started.elapsed().as_secs_f64()).max(1.0);
@@ -254,7 +419,8 @@ pub fn run_fidelity(options: &FidelityOptions, progress: &mut ProgressFn<'_>) ->
     Ok(FidelityResult {
         vertices: scene.garment.vertex_count(),
         motions: "train: idle, walk, spin (+ mirrored); validation: turn".into(),
-        run_budget_secs: run_budget,
+        ablation_run_secs: ablation_budget,
+        spin_run_secs: spin_budget,
         ablation,
         disentanglement,
         skirt,
@@ -263,7 +429,12 @@ pub fn run_fidelity(options: &FidelityOptions, progress: &mut ProgressFn<'_>) ->
 }
 
 fn spin_motion(scene: &Scene) -> Result<&crate::scene::Motion, ReportError> {
-    scene.motions.iter().map(|(m, _)| m).find(|m| m.name == MotionKind::Spin.name()).ok_or_else(|| ReportError::Invalid("no spin motion".into()))
+    scene
+        .motions
+        .iter()
+        .map(|(m, _)| m)
+        .find(|m| m.name == MotionKind::Spin.name())
+        .ok_or_else(|| ReportError::Invalid("no spin motion".into()))
 }
 
 fn disentangle(scene: &Scene, ours: &RunOutcome, fps: f32) -> Result<Disentanglement, ReportError> {
@@ -272,11 +443,23 @@ fn disentangle(scene: &Scene, ours: &RunOutcome, fps: f32) -> Result<Disentangle
     let still_pose = spin.sample(0.5 * spin.duration_secs());
     let still: Vec<Pose> = vec![still_pose.clone(); still_frames];
     // The network on the still body's real descriptors.
-    let mut extractor = DescriptorExtractor::new(&scene.avatar.skeleton, &DescriptorConfig::default(), fps)?;
+    let mut extractor =
+        DescriptorExtractor::new(&scene.avatar.skeleton, &DescriptorConfig::default(), fps)?;
     let desc = extractor.poses(&still)?;
-    let device = ours.model.devices().into_iter().next().unwrap_or_else(|| device_for(BackendKind::Cpu, true));
-    let dynamic = Tensor::<4>::from_data(TensorData::new(desc.dynamic_desc.clone(), [1, desc.frames, desc.joints, 12]), &device);
-    let zd_max_network = ours.model.encode_dynamic(dynamic, None).map(|z| z.abs().max().into_scalar::<f32>());
+    let device = ours
+        .model
+        .devices()
+        .into_iter()
+        .next()
+        .unwrap_or_else(|| device_for(BackendKind::Cpu, true));
+    let dynamic = Tensor::<4>::from_data(
+        TensorData::new(desc.dynamic_desc.clone(), [1, desc.frames, desc.joints, 12]),
+        &device,
+    );
+    let zd_max_network = ours
+        .model
+        .encode_dynamic(dynamic, None)
+        .map(|z| z.abs().max().into_scalar::<f32>());
     // The engine on the same frames at w = 0, 1, 2.
     let mut engine = engine_for(&ours.weights, scene, fps)?;
     let mut zd_max_engine = 0.0f32;
@@ -286,7 +469,10 @@ fn disentangle(scene: &Scene, ours: &RunOutcome, fps: f32) -> Result<Disentangle
         engine.reset();
         for pose in &still {
             engine.step(pose, w)?;
-            zd_max_engine = engine.dynamic_code().iter().fold(zd_max_engine, |m, v| m.max(v.abs()));
+            zd_max_engine = engine
+                .dynamic_code()
+                .iter()
+                .fold(zd_max_engine, |m, v| m.max(v.abs()));
             let x = engine.garment_positions();
             match &first {
                 Some(f) => still_change_mm = still_change_mm.max(1e3 * max_distance_m(f, x)),
@@ -304,8 +490,15 @@ fn disentangle(scene: &Scene, ours: &RunOutcome, fps: f32) -> Result<Disentangle
         outputs.push(frames.last().cloned().unwrap_or_default());
     }
     let static_out = outputs.first().cloned().unwrap_or_default();
-    let displacement_mm: Vec<f64> = outputs.iter().map(|x| 1e3 * mean_distance_m(x, &static_out)).collect();
-    let monotone = displacement_mm.windows(2).all(|p| p[1] >= p[0]) && displacement_mm.last().zip(displacement_mm.first()).is_some_and(|(l, f)| l > f);
+    let displacement_mm: Vec<f64> = outputs
+        .iter()
+        .map(|x| 1e3 * mean_distance_m(x, &static_out))
+        .collect();
+    let monotone = displacement_mm.windows(2).all(|p| p[1] >= p[0])
+        && displacement_mm
+            .last()
+            .zip(displacement_mm.first())
+            .is_some_and(|(l, f)| l > f);
     // Decay of z_D after the body stops mid-spin.
     let mut decay = Vec::new();
     engine.reset();
@@ -334,41 +527,74 @@ fn disentangle(scene: &Scene, ours: &RunOutcome, fps: f32) -> Result<Disentangle
     })
 }
 
-fn skirt_spin(scene: &Scene, ours: &RunOutcome, snug: &RunOutcome, fps: f32, budget_secs: f64, progress: &mut ProgressFn<'_>) -> Result<SkirtSpin, ReportError> {
+fn skirt_spin(
+    scene: &Scene,
+    ours: &RunOutcome,
+    snug: &RunOutcome,
+    fps: f32,
+    budget_secs: f64,
+    progress: &mut ProgressFn<'_>,
+) -> Result<SkirtSpin, ReportError> {
     let spin = spin_motion(scene)?;
     let frames = (spin.duration_secs() * fps).floor() as usize + 1;
     let poses = poses_at(spin, fps, frames);
     let times: Vec<f32> = (0..frames).map(|k| k as f32 / fps).collect();
     let hem = hem_vertices(scene);
-    let radii = |xs: &[Vec<Vec3>]| -> Vec<f32> { xs.iter().zip(&poses).map(|(x, p)| hem_radius(scene, p, x, &hem)).collect() };
+    let radii = |xs: &[Vec<Vec3>]| -> Vec<f32> {
+        xs.iter()
+            .zip(&poses)
+            .map(|(x, p)| hem_radius(scene, p, x, &hem))
+            .collect()
+    };
     let mut engine = engine_for(&ours.weights, scene, fps)?;
     let ours_m = radii(&predict(&mut engine, &poses, 1.0)?);
     let static_m = radii(&predict(&mut engine, &poses, 0.0)?);
     let mut snug_engine = engine_for(&snug.weights, scene, fps)?;
     let snug_m = radii(&predict(&mut snug_engine, &poses, 1.0)?);
+    let snug_static_m = radii(&predict(&mut snug_engine, &poses, 0.0)?);
+    let skinned: Vec<Vec<Vec3>> = poses
+        .iter()
+        .map(|p| scene.garment.pose_vertices(&scene.avatar, p))
+        .collect();
+    let skinned_m = radii(&skinned);
     // The reference simulator up to the end of the window, stopped when the budget is spent.
     let reference_iterations = 40;
     let window = (0.25 * spin.duration_secs(), 0.75 * spin.duration_secs());
     let sim_frames = ((window.1 * fps).ceil() as usize + 1).min(frames);
-    let reference_frames = reference_spin(scene, &poses[..sim_frames.min(poses.len())], fps, reference_iterations, budget_secs, progress)?;
+    let reference_frames = reference_spin(
+        scene,
+        &poses[..sim_frames.min(poses.len())],
+        fps,
+        reference_iterations,
+        budget_secs,
+        progress,
+    )?;
     let reference_m = radii(&reference_frames);
     let mean_reference_m = window_mean(&times, &reference_m, window);
     let mean_ours_m = window_mean(&times, &ours_m, window).unwrap_or(f64::NAN);
     let mean_snug_m = window_mean(&times, &snug_m, window).unwrap_or(f64::NAN);
     let mean_static_m = window_mean(&times, &static_m, window).unwrap_or(f64::NAN);
+    let mean_snug_static_m = window_mean(&times, &snug_static_m, window).unwrap_or(f64::NAN);
+    let mean_skinned_m = window_mean(&times, &skinned_m, window).unwrap_or(f64::NAN);
     Ok(SkirtSpin {
         times,
         ours_m,
         snug_m,
         static_m,
+        snug_static_m,
+        skinned_m,
         reference_m,
         reference_iterations,
         window_secs: window,
         mean_ours_m,
         mean_snug_m,
         mean_static_m,
+        mean_snug_static_m,
+        mean_skinned_m,
         mean_reference_m,
         hem_vertices: hem.len(),
+        ours_run: ours.summary(),
         snug_run: snug.summary(),
+        reference_until_secs: reference_frames.len().saturating_sub(1) as f32 / fps,
     })
 }

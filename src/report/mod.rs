@@ -99,7 +99,13 @@ pub type ProgressFn<'a> = dyn FnMut(&Progress) -> bool + 'a;
 
 /// Maps the progress of a part (`0..=1`) into `[start, start + span]` of the whole and names
 /// its phase; returns the callback's answer.
-pub(crate) fn report_part(progress: &mut ProgressFn<'_>, phase: &str, start: f64, span: f64, part: &Progress) -> bool {
+pub(crate) fn report_part(
+    progress: &mut ProgressFn<'_>,
+    phase: &str,
+    start: f64,
+    span: f64,
+    part: &Progress,
+) -> bool {
     progress(&Progress {
         phase: phase.to_string(),
         fraction: (start + span * part.fraction.clamp(0.0, 1.0)).clamp(0.0, 1.0),
@@ -147,7 +153,11 @@ impl Plan {
             main_resolution: smoke.then_some(300),
             fidelity_resolution: if smoke { 200 } else { 400 },
             spin_secs: if smoke { 1.5 } else { 4.0 },
-            sim_iterations: if smoke { vec![1, 4, 15] } else { vec![1, 2, 5, 10, 20, 50] },
+            sim_iterations: if smoke {
+                vec![1, 4, 15]
+            } else {
+                vec![1, 2, 5, 10, 20, 50]
+            },
             reference_iterations: if smoke { 60 } else { 200 },
         }
     }
@@ -191,11 +201,16 @@ pub struct Report {
 
 /// CPU model, core count and memory (Linux `/proc`), else the core count.
 pub fn machine_description() -> String {
-    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
     let read = |path: &str, key: &str| {
-        std::fs::read_to_string(path)
-            .ok()
-            .and_then(|t| t.lines().find_map(|l| l.strip_prefix(key).map(|v| v.trim_start_matches([' ', '\t', ':']).trim().to_string())))
+        std::fs::read_to_string(path).ok().and_then(|t| {
+            t.lines().find_map(|l| {
+                l.strip_prefix(key)
+                    .map(|v| v.trim_start_matches([' ', '\t', ':']).trim().to_string())
+            })
+        })
     };
     let model = read("/proc/cpuinfo", "model name").unwrap_or_else(|| "unknown CPU".into());
     let mem = read("/proc/meminfo", "MemTotal").unwrap_or_default();
@@ -210,9 +225,14 @@ pub fn default_scene_at(resolution: Option<usize>) -> Result<(Scene, SceneConfig
 
 /// `config` rebuilt with its built-in garment at `resolution` vertices (file garments and
 /// `None` keep theirs). Only built-in scenes can be rebuilt here.
-pub fn rebuild_at(config: &SceneConfig, resolution: Option<usize>) -> Result<(Scene, SceneConfig), ReportError> {
+pub fn rebuild_at(
+    config: &SceneConfig,
+    resolution: Option<usize>,
+) -> Result<(Scene, SceneConfig), ReportError> {
     let mut config = config.clone();
-    if let (GarmentSource::Builtin { resolution: r, .. }, Some(n)) = (&mut config.garment, resolution) {
+    if let (GarmentSource::Builtin { resolution: r, .. }, Some(n)) =
+        (&mut config.garment, resolution)
+    {
         *r = n;
     }
     let scene = crate::scene::procedural::build_builtin(&config)?;
@@ -221,15 +241,23 @@ pub fn rebuild_at(config: &SceneConfig, resolution: Option<usize>) -> Result<(Sc
 
 /// Runs every experiment within `options.budget_secs`. `progress` sees the whole job go from
 /// 0 to 1; returning false cancels.
-pub fn run_report(options: &ReportOptions, progress: &mut ProgressFn<'_>) -> Result<Report, ReportError> {
+pub fn run_report(
+    options: &ReportOptions,
+    progress: &mut ProgressFn<'_>,
+) -> Result<Report, ReportError> {
     if !(options.budget_secs.is_finite() && options.budget_secs > 0.0) {
-        return Err(ReportError::Invalid(format!("budget {} s is not positive", options.budget_secs)));
+        return Err(ReportError::Invalid(format!(
+            "budget {} s is not positive",
+            options.budget_secs
+        )));
     }
     let started = Instant::now();
     let plan = Plan::for_budget(options.budget_secs);
     let (scene, config) = match &options.scene {
         Some((s, c)) => match plan.main_resolution {
-            Some(_) if matches!(c.garment, GarmentSource::Builtin { .. }) => rebuild_at(c, plan.main_resolution)?,
+            Some(_) if matches!(c.garment, GarmentSource::Builtin { .. }) => {
+                rebuild_at(c, plan.main_resolution)?
+            }
             _ => (s.clone(), c.clone()),
         },
         None => default_scene_at(plan.main_resolution)?,
@@ -247,7 +275,9 @@ pub fn run_report(options: &ReportOptions, progress: &mut ProgressFn<'_>) -> Res
         seed: options.seed,
         ..CostOptions::default()
     };
-    let accuracy = run_cost_experiment(&scene, &cost, &mut |p| report_part(progress, "accuracy", 0.0, a_span, p))?;
+    let accuracy = run_cost_experiment(&scene, &cost, &mut |p| {
+        report_part(progress, "accuracy", 0.0, a_span, p)
+    })?;
 
     let fidelity_options = FidelityOptions {
         budget_secs: left_until(deadline(0.65)),
@@ -255,10 +285,23 @@ pub fn run_report(options: &ReportOptions, progress: &mut ProgressFn<'_>) -> Res
         spin_secs: plan.spin_secs,
         seed: options.seed,
     };
-    let fidelity = run_fidelity(&fidelity_options, &mut |p| report_part(progress, "fidelity", a_span, f_span, p))?;
+    let fidelity = run_fidelity(&fidelity_options, &mut |p| {
+        report_part(progress, "fidelity", a_span, f_span, p)
+    })?;
 
-    let settings_options = SettingsOptions { budget_secs: left_until(deadline(0.98)), seed: options.seed };
-    let settings = run_settings(&scene, &config, &settings_options, &mut |p| report_part(progress, "settings", a_span + f_span, 1.0 - a_span - f_span, p))?;
+    let settings_options = SettingsOptions {
+        budget_secs: left_until(deadline(0.98)),
+        seed: options.seed,
+    };
+    let settings = run_settings(&scene, &config, &settings_options, &mut |p| {
+        report_part(
+            progress,
+            "settings",
+            a_span + f_span,
+            1.0 - a_span - f_span,
+            p,
+        )
+    })?;
 
     Ok(Report {
         command: options.command.clone(),
@@ -278,7 +321,9 @@ pub fn run_report(options: &ReportOptions, progress: &mut ProgressFn<'_>) -> Res
 pub fn write_report(report: &Report, out_dir: &Path) -> Result<Vec<PathBuf>, ReportError> {
     use crate::io::export::atomic::write_atomic;
     let figures_dir = out_dir.join("report");
-    std::fs::create_dir_all(&figures_dir).map_err(|e| ReportError::Invalid(format!("cannot create {}: {e}", figures_dir.display())))?;
+    std::fs::create_dir_all(&figures_dir).map_err(|e| {
+        ReportError::Invalid(format!("cannot create {}: {e}", figures_dir.display()))
+    })?;
     let mut written = Vec::new();
     for (name, svg) in plots::all_figures(report)? {
         let path = figures_dir.join(name);
@@ -286,7 +331,7 @@ pub fn write_report(report: &Report, out_dir: &Path) -> Result<Vec<PathBuf>, Rep
         written.push(path);
     }
     let json_path = figures_dir.join("report.json");
-    write_atomic(&json_path, serde_json::to_string_pretty(report)?.as_bytes())?;
+    write_atomic(&json_path, serde_json::to_string(report)?.as_bytes())?;
     written.push(json_path);
     let md_path = out_dir.join("REPORT.md");
     write_atomic(&md_path, markdown::render(report).as_bytes())?;

@@ -6,8 +6,8 @@
 
 use plotters::prelude::*;
 
-use super::{Report, ReportError};
 use super::accuracy::Method;
+use super::{Report, ReportError};
 
 /// One data series of a panel.
 #[derive(Clone, Debug, Default)]
@@ -54,7 +54,10 @@ pub struct Panel {
 }
 
 fn plot_err(name: &str, e: impl std::fmt::Display) -> ReportError {
-    ReportError::Plot { name: name.to_string(), reason: e.to_string() }
+    ReportError::Plot {
+        name: name.to_string(),
+        reason: e.to_string(),
+    }
 }
 
 fn color(i: usize) -> RGBColor {
@@ -81,25 +84,44 @@ fn tick(v: f64) -> String {
     } else if a >= 100.0 {
         format!("{v:.0}")
     } else if a >= 1.0 {
-        format!("{v:.3}").trim_end_matches('0').trim_end_matches('.').to_string()
+        format!("{v:.3}")
+            .trim_end_matches('0')
+            .trim_end_matches('.')
+            .to_string()
     } else {
-        format!("{v:.4}").trim_end_matches('0').trim_end_matches('.').to_string()
+        format!("{v:.4}")
+            .trim_end_matches('0')
+            .trim_end_matches('.')
+            .to_string()
     }
 }
 
 /// `(lo, hi)` of `values` with 5% padding (a unit range around a single value).
 fn padded(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = values.filter(|v| v.is_finite()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
     if !lo.is_finite() {
         return (0.0, 1.0);
     }
     let span = hi - lo;
-    let pad = if span > 1e-12 { 0.05 * span } else { 0.5 * lo.abs().max(1e-3) };
+    let pad = if span > 1e-12 {
+        0.05 * span
+    } else {
+        0.5 * lo.abs().max(1e-3)
+    };
     (lo - pad, hi + pad)
 }
 
 /// Draws `panels` in a grid of `cols` columns into an SVG of `size` pixels.
-pub fn figure(name: &str, panels: &[Panel], cols: usize, size: (u32, u32)) -> Result<String, ReportError> {
+pub fn figure(
+    name: &str,
+    panels: &[Panel],
+    cols: usize,
+    size: (u32, u32),
+) -> Result<String, ReportError> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
@@ -109,7 +131,11 @@ pub fn figure(name: &str, panels: &[Panel], cols: usize, size: (u32, u32)) -> Re
         let areas = root.split_evenly((rows, cols));
         for (panel, area) in panels.iter().zip(areas.iter()) {
             match &panel.kind {
-                PanelKind::Lines { series, log_x, log_y } => lines(name, area, panel, series, *log_x, *log_y)?,
+                PanelKind::Lines {
+                    series,
+                    log_x,
+                    log_y,
+                } => lines(name, area, panel, series, *log_x, *log_y)?,
                 PanelKind::Bars(bars) => bars_panel(name, area, panel, bars)?,
             }
         }
@@ -118,12 +144,37 @@ pub fn figure(name: &str, panels: &[Panel], cols: usize, size: (u32, u32)) -> Re
     Ok(svg)
 }
 
-fn lines<DB: DrawingBackend>(name: &str, area: &DrawingArea<DB, plotters::coord::Shift>, panel: &Panel, series: &[Series], log_x: bool, log_y: bool) -> Result<(), ReportError> {
-    let tx = |v: f64| if log_x { (v > 0.0).then(|| v.log10()) } else { Some(v) };
-    let ty = |v: f64| if log_y { (v > 0.0).then(|| v.log10()) } else { Some(v) };
+fn lines<DB: DrawingBackend>(
+    name: &str,
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    panel: &Panel,
+    series: &[Series],
+    log_x: bool,
+    log_y: bool,
+) -> Result<(), ReportError> {
+    let tx = |v: f64| {
+        if log_x {
+            (v > 0.0).then(|| v.log10())
+        } else {
+            Some(v)
+        }
+    };
+    let ty = |v: f64| {
+        if log_y {
+            (v > 0.0).then(|| v.log10())
+        } else {
+            Some(v)
+        }
+    };
     let mapped: Vec<Vec<(f64, f64)>> = series
         .iter()
-        .map(|s| s.points.iter().filter_map(|&(x, y)| Some((tx(x)?, ty(y)?))).filter(|(x, y)| x.is_finite() && y.is_finite()).collect())
+        .map(|s| {
+            s.points
+                .iter()
+                .filter_map(|&(x, y)| Some((tx(x)?, ty(y)?)))
+                .filter(|(x, y)| x.is_finite() && y.is_finite())
+                .collect()
+        })
         .collect();
     let (x0, x1) = padded(mapped.iter().flatten().map(|p| p.0));
     let (y0, y1) = padded(mapped.iter().flatten().map(|p| p.1));
@@ -151,16 +202,25 @@ fn lines<DB: DrawingBackend>(name: &str, area: &DrawingArea<DB, plotters::coord:
     for (s, pts) in series.iter().zip(&mapped) {
         let c = color(s.color);
         if s.line && pts.len() > 1 {
-            let drawn = chart.draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(2))).map_err(|e| plot_err(name, e))?;
+            let drawn = chart
+                .draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(2)))
+                .map_err(|e| plot_err(name, e))?;
             if !s.label.is_empty() {
-                drawn.label(s.label.clone()).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(2)));
+                drawn.label(s.label.clone()).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(2))
+                });
                 labelled = true;
             }
         }
         if s.markers || pts.len() == 1 || !s.line {
-            let drawn = chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, c.filled()))).map_err(|e| plot_err(name, e))?;
-            if !s.label.is_empty() && !(s.line && pts.len() > 1) {
-                drawn.label(s.label.clone()).legend(move |(x, y)| Circle::new((x + 8, y), 3, c.filled()));
+            let drawn = chart
+                .draw_series(pts.iter().map(|&p| Circle::new(p, 3, c.filled())))
+                .map_err(|e| plot_err(name, e))?;
+            let line_has_legend = s.line && pts.len() > 1;
+            if !(s.label.is_empty() || line_has_legend) {
+                drawn
+                    .label(s.label.clone())
+                    .legend(move |(x, y)| Circle::new((x + 8, y), 3, c.filled()));
                 labelled = true;
             }
         }
@@ -178,8 +238,19 @@ fn lines<DB: DrawingBackend>(name: &str, area: &DrawingArea<DB, plotters::coord:
     Ok(())
 }
 
-fn bars_panel<DB: DrawingBackend>(name: &str, area: &DrawingArea<DB, plotters::coord::Shift>, panel: &Panel, bars: &[(String, f64)]) -> Result<(), ReportError> {
-    let top = bars.iter().map(|b| b.1).filter(|v| v.is_finite()).fold(0.0f64, f64::max).max(1e-9) * 1.1;
+fn bars_panel<DB: DrawingBackend>(
+    name: &str,
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    panel: &Panel,
+    bars: &[(String, f64)],
+) -> Result<(), ReportError> {
+    let top = bars
+        .iter()
+        .map(|b| b.1)
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max)
+        .max(1e-9)
+        * 1.1;
     let n = bars.len().max(1) as f64;
     let mut chart = ChartBuilder::on(area)
         .caption(&panel.title, ("sans-serif", 16))
@@ -191,7 +262,11 @@ fn bars_panel<DB: DrawingBackend>(name: &str, area: &DrawingArea<DB, plotters::c
     let labels: Vec<String> = bars.iter().map(|b| b.0.clone()).collect();
     let fy = move |v: &f64| {
         let i = v.round();
-        if (v - i).abs() < 1e-6 && i >= 0.0 { labels.get(i as usize).cloned().unwrap_or_default() } else { String::new() }
+        if (v - i).abs() < 1e-6 && i >= 0.0 {
+            labels.get(i as usize).cloned().unwrap_or_default()
+        } else {
+            String::new()
+        }
     };
     let fx = |v: &f64| tick(*v);
     chart
@@ -215,12 +290,60 @@ fn bars_panel<DB: DrawingBackend>(name: &str, area: &DrawingArea<DB, plotters::c
     Ok(())
 }
 
-fn lines_panel(title: &str, x: &str, y: &str, series: Vec<Series>, log_x: bool, log_y: bool) -> Panel {
-    Panel { title: title.into(), x_desc: x.into(), y_desc: y.into(), kind: PanelKind::Lines { series, log_x, log_y } }
+/// Running mean of the y values over `window` points (centred), for noisy per-step curves.
+fn smooth(points: &[(f64, f64)], window: usize) -> Vec<(f64, f64)> {
+    let half = window / 2;
+    (0..points.len())
+        .map(|i| {
+            let lo = i.saturating_sub(half);
+            let hi = (i + half + 1).min(points.len());
+            let ys: Vec<f64> = points
+                .get(lo..hi)
+                .unwrap_or_default()
+                .iter()
+                .map(|p| p.1)
+                .filter(|y| y.is_finite())
+                .collect();
+            let x = points.get(i).map_or(0.0, |p| p.0);
+            (x, ys.iter().sum::<f64>() / ys.len().max(1) as f64)
+        })
+        .collect()
 }
 
-fn series(label: impl Into<String>, points: Vec<(f64, f64)>, color: usize, line: bool, markers: bool) -> Series {
-    Series { label: label.into(), points, color, line, markers }
+fn lines_panel(
+    title: &str,
+    x: &str,
+    y: &str,
+    series: Vec<Series>,
+    log_x: bool,
+    log_y: bool,
+) -> Panel {
+    Panel {
+        title: title.into(),
+        x_desc: x.into(),
+        y_desc: y.into(),
+        kind: PanelKind::Lines {
+            series,
+            log_x,
+            log_y,
+        },
+    }
+}
+
+fn series(
+    label: impl Into<String>,
+    points: Vec<(f64, f64)>,
+    color: usize,
+    line: bool,
+    markers: bool,
+) -> Series {
+    Series {
+        label: label.into(),
+        points,
+        color,
+        line,
+        markers,
+    }
 }
 
 /// Every figure of the report as `(file name, SVG text)`.
@@ -228,9 +351,21 @@ pub fn all_figures(r: &Report) -> Result<Vec<(String, String)>, ReportError> {
     let mut out = Vec::new();
     let a = &r.accuracy;
     // Accuracy against time.
-    let sims: Vec<_> = a.points.iter().filter(|p| p.method == Method::Simulator).collect();
-    let nets: Vec<_> = a.points.iter().filter(|p| p.method == Method::Neural).collect();
-    let pick = |pts: &[&super::CostPoint], f: fn(&super::CostPoint) -> f64| pts.iter().map(|p| (p.ms_per_frame, f(p))).collect::<Vec<_>>();
+    let sims: Vec<_> = a
+        .points
+        .iter()
+        .filter(|p| p.method == Method::Simulator)
+        .collect();
+    let nets: Vec<_> = a
+        .points
+        .iter()
+        .filter(|p| p.method == Method::Neural)
+        .collect();
+    let pick = |pts: &[&super::CostPoint], f: fn(&super::CostPoint) -> f64| {
+        pts.iter()
+            .map(|p| (p.ms_per_frame, f(p)))
+            .collect::<Vec<_>>()
+    };
     let accuracy = [
         lines_panel(
             "Error to the reference vs cost per frame",
@@ -252,49 +387,151 @@ pub fn all_figures(r: &Report) -> Result<Vec<(String, String)>, ReportError> {
             vec![
                 series("simulator", pick(&sims, |p| p.residual_rms), 0, true, true),
                 series("network", pick(&nets, |p| p.residual_rms), 1, false, true),
-                series("reference", vec![(a.reference.ms_per_frame, a.reference.residual_rms)], 2, false, true),
+                series(
+                    "reference",
+                    vec![(a.reference.ms_per_frame, a.reference.residual_rms)],
+                    2,
+                    false,
+                    true,
+                ),
             ],
             true,
             true,
         ),
     ];
-    out.push(("accuracy_vs_time.svg".to_string(), figure("accuracy_vs_time", &accuracy, 2, (1200, 480))?));
+    out.push((
+        "accuracy_vs_time.svg".to_string(),
+        figure("accuracy_vs_time", &accuracy, 2, (1200, 480))?,
+    ));
     // Training curves of the default run.
-    let metric = |k: usize, rec: &crate::train::MetricRecord| rec.named().get(k).map(|n| n.1).unwrap_or(f64::NAN);
-    let names = ["strain", "bending (rad)", "collision (%)", "gravity (J)", "inertia (J)"];
+    let metric = |k: usize, rec: &crate::train::MetricRecord| {
+        rec.named().get(k).map(|n| n.1).unwrap_or(f64::NAN)
+    };
+    let names = [
+        "strain",
+        "bending (rad)",
+        "collision (%)",
+        "gravity (J)",
+        "inertia (J)",
+    ];
     let curves: Vec<Panel> = names
         .iter()
         .enumerate()
         .map(|(k, n)| {
-            let train: Vec<(f64, f64)> = a.training.train.iter().map(|rec| (rec.wall_secs, metric(k, rec))).collect();
-            let val: Vec<(f64, f64)> = a.training.validation.iter().map(|rec| (rec.wall_secs, metric(k, rec))).collect();
-            lines_panel(n, "seconds of training", n, vec![series("train", train, 7, true, false), series("validation", val, 1, true, true)], false, false)
+            let train: Vec<(f64, f64)> = a
+                .training
+                .train
+                .iter()
+                .map(|rec| (rec.wall_secs, metric(k, rec)))
+                .collect();
+            let val: Vec<(f64, f64)> = a
+                .training
+                .validation
+                .iter()
+                .map(|rec| (rec.wall_secs, metric(k, rec)))
+                .collect();
+            let smoothed = smooth(&train, (train.len() / 40).max(1));
+            lines_panel(
+                n,
+                "seconds of training",
+                n,
+                vec![
+                    series("train (running mean)", smoothed, 7, true, false),
+                    series("validation", val, 1, true, true),
+                ],
+                false,
+                false,
+            )
         })
         .collect();
-    out.push(("training_curves.svg".to_string(), figure("training_curves", &curves, 3, (1350, 700))?));
+    out.push((
+        "training_curves.svg".to_string(),
+        figure("training_curves", &curves, 3, (1350, 700))?,
+    ));
     // Settings against cost.
-    let bars = |f: fn(&super::SettingRow) -> f64| r.settings.iter().map(|s| (s.label.clone(), f(s))).collect::<Vec<_>>();
+    let bars = |f: fn(&super::SettingRow) -> f64| {
+        r.settings
+            .iter()
+            .map(|s| (s.label.clone(), f(s)))
+            .collect::<Vec<_>>()
+    };
     let settings = [
-        Panel { title: "Training step".into(), x_desc: "ms per step (median)".into(), y_desc: String::new(), kind: PanelKind::Bars(bars(|s| s.step_ms)) },
-        Panel { title: "Inference".into(), x_desc: "frames per second (1 thread)".into(), y_desc: String::new(), kind: PanelKind::Bars(bars(|s| s.inference_fps())) },
+        Panel {
+            title: "Training step".into(),
+            x_desc: "ms per step (median)".into(),
+            y_desc: String::new(),
+            kind: PanelKind::Bars(bars(|s| s.step_ms)),
+        },
+        Panel {
+            title: "Inference".into(),
+            x_desc: "frames per second (1 thread)".into(),
+            y_desc: String::new(),
+            kind: PanelKind::Bars(bars(|s| s.inference_fps())),
+        },
     ];
-    out.push(("settings_cost.svg".to_string(), figure("settings_cost", &settings, 2, (1300, 520))?));
+    out.push((
+        "settings_cost.svg".to_string(),
+        figure("settings_cost", &settings, 2, (1300, 520))?,
+    ));
     // Fig. 6: window and frame rate against the validation metrics over time.
     let curve = |group: &str, k: usize| -> Vec<Series> {
         r.settings
             .iter()
             .filter(|s| s.group == group || s.group == "baseline")
             .enumerate()
-            .map(|(i, s)| series(s.label.clone(), s.run.validation.iter().map(|v| (v.wall_secs, metric(k, v))).collect(), i, true, true))
+            .map(|(i, s)| {
+                series(
+                    s.label.clone(),
+                    s.run
+                        .validation
+                        .iter()
+                        .map(|v| (v.wall_secs, metric(k, v)))
+                        .collect(),
+                    i,
+                    true,
+                    true,
+                )
+            })
             .collect()
     };
     let fig6 = [
-        lines_panel("Window: validation inertia", "seconds of training", "inertia (J)", curve("window", 4), false, false),
-        lines_panel("Window: validation gravity", "seconds of training", "gravity (J)", curve("window", 3), false, false),
-        lines_panel("Frame rate: validation inertia", "seconds of training", "inertia (J)", curve("frame rate", 4), false, false),
-        lines_panel("Frame rate: validation gravity", "seconds of training", "gravity (J)", curve("frame rate", 3), false, false),
+        lines_panel(
+            "Window: validation inertia",
+            "seconds of training",
+            "inertia (J)",
+            curve("window", 4),
+            false,
+            false,
+        ),
+        lines_panel(
+            "Window: validation gravity",
+            "seconds of training",
+            "gravity (J)",
+            curve("window", 3),
+            false,
+            false,
+        ),
+        lines_panel(
+            "Frame rate: validation inertia",
+            "seconds of training",
+            "inertia (J)",
+            curve("frame rate", 4),
+            false,
+            false,
+        ),
+        lines_panel(
+            "Frame rate: validation gravity",
+            "seconds of training",
+            "gravity (J)",
+            curve("frame rate", 3),
+            false,
+            false,
+        ),
     ];
-    out.push(("window_fps_curves.svg".to_string(), figure("window_fps_curves", &fig6, 2, (1200, 800))?));
+    out.push((
+        "window_fps_curves.svg".to_string(),
+        figure("window_fps_curves", &fig6, 2, (1200, 800))?,
+    ));
     // Disentanglement.
     let d = &r.fidelity.disentanglement;
     let dis = [
@@ -302,7 +539,16 @@ pub fn all_figures(r: &Report) -> Result<Vec<(String, String)>, ReportError> {
             &format!("w sweep on the spin at {:.2} s", d.sweep_time_secs),
             "w",
             "mean displacement from w = 0, mm",
-            vec![series("ours", d.w.iter().zip(&d.displacement_mm).map(|(w, m)| (f64::from(*w), *m)).collect(), 1, true, true)],
+            vec![series(
+                "ours",
+                d.w.iter()
+                    .zip(&d.displacement_mm)
+                    .map(|(w, m)| (f64::from(*w), *m))
+                    .collect(),
+                1,
+                true,
+                true,
+            )],
             false,
             false,
         ),
@@ -310,15 +556,33 @@ pub fn all_figures(r: &Report) -> Result<Vec<(String, String)>, ReportError> {
             "|z_D| after the body stops mid-spin",
             "seconds since the stop",
             "|z_D| (L2)",
-            vec![series("ours", d.decay.iter().map(|(t, z)| (f64::from(*t), f64::from(*z))).collect(), 0, true, true)],
+            vec![series(
+                "ours",
+                d.decay
+                    .iter()
+                    .map(|(t, z)| (f64::from(*t), f64::from(*z)))
+                    .collect(),
+                0,
+                true,
+                true,
+            )],
             false,
             false,
         ),
     ];
-    out.push(("disentanglement.svg".to_string(), figure("disentanglement", &dis, 2, (1200, 460))?));
+    out.push((
+        "disentanglement.svg".to_string(),
+        figure("disentanglement", &dis, 2, (1200, 460))?,
+    ));
     // Skirt radius under the spin.
     let s = &r.fidelity.skirt;
-    let radius = |v: &[f32]| s.times.iter().zip(v).map(|(t, r)| (f64::from(*t), 1e3 * f64::from(*r))).collect::<Vec<_>>();
+    let radius = |v: &[f32]| {
+        s.times
+            .iter()
+            .zip(v)
+            .map(|(t, r)| (f64::from(*t), 1e3 * f64::from(*r)))
+            .collect::<Vec<_>>()
+    };
     let skirt = [lines_panel(
         "Hem radius about the body axis under the spin",
         "seconds",
@@ -326,22 +590,73 @@ pub fn all_figures(r: &Report) -> Result<Vec<(String, String)>, ReportError> {
         vec![
             series("ours (w = 1)", radius(&s.ours_m), 1, true, false),
             series("SNUG-style", radius(&s.snug_m), 0, true, false),
-            series("static (w = 0)", radius(&s.static_m), 7, true, false),
-            series(format!("simulator {} it", s.reference_iterations), radius(&s.reference_m), 2, true, false),
+            series("ours, static (w = 0)", radius(&s.static_m), 3, true, false),
+            series(
+                "SNUG-style, static (w = 0)",
+                radius(&s.snug_static_m),
+                4,
+                true,
+                false,
+            ),
+            series("skinned template", radius(&s.skinned_m), 7, true, false),
+            series(
+                format!("simulator {} it", s.reference_iterations),
+                radius(&s.reference_m),
+                2,
+                true,
+                false,
+            ),
         ],
         false,
         false,
     )];
-    out.push(("skirt_spin.svg".to_string(), figure("skirt_spin", &skirt, 1, (900, 480))?));
+    out.push((
+        "skirt_spin.svg".to_string(),
+        figure("skirt_spin", &skirt, 1, (900, 480))?,
+    ));
     // Fig. 7: ablation curves.
     let abl = |k: usize| -> Vec<Series> {
-        r.fidelity.ablation.iter().enumerate().map(|(i, row)| series(row.label.clone(), row.run.validation.iter().map(|v| (v.wall_secs, metric(k, v))).collect(), i, true, true)).collect()
+        r.fidelity
+            .ablation
+            .iter()
+            .enumerate()
+            .map(|(i, row)| {
+                series(
+                    row.label.clone(),
+                    row.run
+                        .validation
+                        .iter()
+                        .map(|v| (v.wall_secs, metric(k, v)))
+                        .collect(),
+                    i,
+                    true,
+                    true,
+                )
+            })
+            .collect()
     };
     let ablation = [
-        lines_panel("Validation collisions", "seconds of training", "collision (%)", abl(2), false, false),
-        lines_panel("Validation inertia", "seconds of training", "inertia (J)", abl(4), false, false),
+        lines_panel(
+            "Validation collisions",
+            "seconds of training",
+            "collision (%)",
+            abl(2),
+            false,
+            false,
+        ),
+        lines_panel(
+            "Validation inertia",
+            "seconds of training",
+            "inertia (J)",
+            abl(4),
+            false,
+            false,
+        ),
     ];
-    out.push(("ablation_curves.svg".to_string(), figure("ablation_curves", &ablation, 2, (1200, 460))?));
+    out.push((
+        "ablation_curves.svg".to_string(),
+        figure("ablation_curves", &ablation, 2, (1200, 460))?,
+    ));
     Ok(out)
 }
 
@@ -352,11 +667,27 @@ mod tests {
     #[test]
     fn a_figure_is_svg_with_its_text() {
         let panels = [
-            lines_panel("a title", "x", "y", vec![series("s", vec![(1.0, 10.0), (10.0, 1.0)], 0, true, true)], true, true),
-            Panel { title: "bars".into(), x_desc: "ms".into(), y_desc: String::new(), kind: PanelKind::Bars(vec![("one".into(), 2.0), ("two".into(), 3.0)]) },
+            lines_panel(
+                "a title",
+                "x",
+                "y",
+                vec![series("s", vec![(1.0, 10.0), (10.0, 1.0)], 0, true, true)],
+                true,
+                true,
+            ),
+            Panel {
+                title: "bars".into(),
+                x_desc: "ms".into(),
+                y_desc: String::new(),
+                kind: PanelKind::Bars(vec![("one".into(), 2.0), ("two".into(), 3.0)]),
+            },
         ];
         let svg = figure("test", &panels, 2, (600, 300)).unwrap();
-        assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"), "{}", &svg[..60.min(svg.len())]);
+        assert!(
+            svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"),
+            "{}",
+            &svg[..60.min(svg.len())]
+        );
         for text in ["a title", "bars", "one", "two"] {
             assert!(svg.contains(text), "missing {text}");
         }

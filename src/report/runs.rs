@@ -9,7 +9,9 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::Vec3;
-use crate::model::{ClothNet, ClothNetConfig, DescriptorConfig, InferenceEngine, InferenceOptions, InferenceWeights};
+use crate::model::{
+    ClothNet, ClothNetConfig, DescriptorConfig, InferenceEngine, InferenceOptions, InferenceWeights,
+};
 use crate::scene::config::SceneConfig;
 use crate::scene::{Pose, Scene};
 use crate::train::handle::Session;
@@ -94,16 +96,28 @@ pub struct RunSummary {
 impl RunOutcome {
     /// The compact record.
     pub fn summary(&self) -> RunSummary {
-        RunSummary { steps: self.steps, run_secs: self.run_secs, step_ms: self.step_ms, validation: self.history.validation.clone(), diverged: self.diverged }
+        RunSummary {
+            steps: self.steps,
+            run_secs: self.run_secs,
+            step_ms: self.step_ms,
+            validation: self.history.validation.clone(),
+            diverged: self.diverged,
+        }
     }
 }
 
 static RUN_COUNTER: AtomicUsize = AtomicUsize::new(0);
 
 fn temp_run_dir(label: &str) -> PathBuf {
-    let clean: String = label.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '-' }).collect();
+    let clean: String = label
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+        .collect();
     let n = RUN_COUNTER.fetch_add(1, Ordering::Relaxed);
-    std::env::temp_dir().join(format!("neural-cloth-report-{}-{n}-{clean}", std::process::id()))
+    std::env::temp_dir().join(format!(
+        "neural-cloth-report-{}-{n}-{clean}",
+        std::process::id()
+    ))
 }
 
 /// Median of `values` (0 when empty).
@@ -119,7 +133,10 @@ pub fn median(values: &[f64]) -> f64 {
 /// Trains `spec` until its budget is spent (and at least `min_steps` steps are done).
 /// `keep_going(fraction of the budget)` is asked after each step; false cancels. The
 /// temporary run folder is removed afterwards.
-pub fn train_run(spec: RunSpec, keep_going: &mut dyn FnMut(f64) -> bool) -> Result<RunOutcome, ReportError> {
+pub fn train_run(
+    spec: RunSpec,
+    keep_going: &mut dyn FnMut(f64) -> bool,
+) -> Result<RunOutcome, ReportError> {
     let dir = temp_run_dir(&spec.label);
     let _ = std::fs::remove_dir_all(&dir);
     let result = train_in(spec, dir.clone(), keep_going);
@@ -127,9 +144,26 @@ pub fn train_run(spec: RunSpec, keep_going: &mut dyn FnMut(f64) -> bool) -> Resu
     result
 }
 
-fn train_in(spec: RunSpec, dir: PathBuf, keep_going: &mut dyn FnMut(f64) -> bool) -> Result<RunOutcome, ReportError> {
-    let RunSpec { label, scene, config, train, model, budget_secs, min_steps, validations, mut snapshot_fractions } = spec;
-    let run_err = |reason: String| ReportError::Run { label: label.clone(), reason };
+fn train_in(
+    spec: RunSpec,
+    dir: PathBuf,
+    keep_going: &mut dyn FnMut(f64) -> bool,
+) -> Result<RunOutcome, ReportError> {
+    let RunSpec {
+        label,
+        scene,
+        config,
+        train,
+        model,
+        budget_secs,
+        min_steps,
+        validations,
+        mut snapshot_fractions,
+    } = spec;
+    let run_err = |reason: String| ReportError::Run {
+        label: label.clone(),
+        reason,
+    };
     let budget = budget_secs.max(0.0);
     let setup = TrainSetup {
         scene,
@@ -165,8 +199,16 @@ fn train_in(spec: RunSpec, dir: PathBuf, keep_going: &mut dyn FnMut(f64) -> bool
         record.step = steps;
         record.wall_secs = run_secs;
         history.train.push(record);
-        while snapshots.len() < snapshot_fractions.len() && snapshot_fractions.get(snapshots.len()).is_some_and(|f| run_secs >= f * budget && *f < 1.0) {
-            snapshots.push(Snapshot { run_secs, step: steps, weights: session.snapshot().map_err(&run_err)? });
+        while snapshots.len() < snapshot_fractions.len()
+            && snapshot_fractions
+                .get(snapshots.len())
+                .is_some_and(|f| run_secs >= f * budget && *f < 1.0)
+        {
+            snapshots.push(Snapshot {
+                run_secs,
+                step: steps,
+                weights: session.snapshot().map_err(&run_err)?,
+            });
         }
         if run_secs >= next_validation && run_secs < budget {
             let mut v = session.validate().map_err(&run_err)?;
@@ -186,7 +228,11 @@ fn train_in(spec: RunSpec, dir: PathBuf, keep_going: &mut dyn FnMut(f64) -> bool
     let weights = session.snapshot().map_err(&run_err)?;
     let run_secs = started.elapsed().as_secs_f64();
     while snapshots.len() < snapshot_fractions.len() {
-        snapshots.push(Snapshot { run_secs, step: steps, weights: weights.clone() });
+        snapshots.push(Snapshot {
+            run_secs,
+            step: steps,
+            weights: weights.clone(),
+        });
     }
     Ok(RunOutcome {
         label,
@@ -202,15 +248,99 @@ fn train_in(spec: RunSpec, dir: PathBuf, keep_going: &mut dyn FnMut(f64) -> bool
     })
 }
 
+/// Median milliseconds per optimiser step of each spec, measured round-robin: every session
+/// is prepared and warmed up by one step, then `rounds` rounds time `steps` steps of each in
+/// turn, so that a change of machine load affects all specs alike. `keep_going(fraction)`
+/// false cancels. The specs' budgets are ignored.
+pub fn interleaved_step_ms(
+    specs: &[RunSpec],
+    rounds: usize,
+    steps: usize,
+    keep_going: &mut dyn FnMut(f64) -> bool,
+) -> Result<Vec<f64>, ReportError> {
+    let dirs: Vec<PathBuf> = specs
+        .iter()
+        .map(|s| temp_run_dir(&format!("timing-{}", s.label)))
+        .collect();
+    let result = (|| {
+        let mut sessions = Vec::with_capacity(specs.len());
+        for (k, (spec, dir)) in specs.iter().zip(&dirs).enumerate() {
+            let run_err = |reason: String| ReportError::Run {
+                label: spec.label.clone(),
+                reason,
+            };
+            let _ = std::fs::remove_dir_all(dir);
+            let setup = TrainSetup {
+                scene: spec.scene.clone(),
+                scene_config: spec
+                    .config
+                    .clone()
+                    .unwrap_or_else(SceneConfig::default_scene),
+                train: spec.train.clone(),
+                model: spec.model.clone(),
+                descriptors: DescriptorConfig::default(),
+                fabric: None,
+                location: RunLocation::At(dir.clone()),
+            };
+            let (mut session, _) = prepare(setup)?;
+            session.step().map_err(run_err)?;
+            sessions.push(session);
+            if !keep_going(0.3 * (k + 1) as f64 / specs.len().max(1) as f64) {
+                return Err(ReportError::Cancelled);
+            }
+        }
+        let mut times: Vec<Vec<f64>> = vec![Vec::new(); specs.len()];
+        for round in 0..rounds {
+            for ((session, spec), t) in sessions.iter_mut().zip(specs).zip(times.iter_mut()) {
+                for _ in 0..steps.max(1) {
+                    let started = Instant::now();
+                    session.step().map_err(|reason| ReportError::Run {
+                        label: spec.label.clone(),
+                        reason,
+                    })?;
+                    t.push(started.elapsed().as_secs_f64() * 1e3);
+                }
+            }
+            if !keep_going(0.3 + 0.7 * (round + 1) as f64 / rounds.max(1) as f64) {
+                return Err(ReportError::Cancelled);
+            }
+        }
+        Ok(times.iter().map(|t| median(t)).collect())
+    })();
+    for dir in &dirs {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+    result
+}
+
 /// An engine for `weights` on `scene` at `fps`: one thread, garment only (no body skinning).
-pub fn engine_for(weights: &InferenceWeights, scene: &Scene, fps: f32) -> Result<InferenceEngine, ReportError> {
-    let options = InferenceOptions { threads: 1, skin_body: false, ..Default::default() };
-    Ok(InferenceEngine::from_scene(weights.clone(), &scene.avatar, &scene.garment, &DescriptorConfig::default(), fps, options)?)
+pub fn engine_for(
+    weights: &InferenceWeights,
+    scene: &Scene,
+    fps: f32,
+) -> Result<InferenceEngine, ReportError> {
+    let options = InferenceOptions {
+        threads: 1,
+        skin_body: false,
+        ..Default::default()
+    };
+    Ok(InferenceEngine::from_scene(
+        weights.clone(),
+        &scene.avatar,
+        &scene.garment,
+        &DescriptorConfig::default(),
+        fps,
+        options,
+    )?)
 }
 
 /// Garment frames of `poses` (consecutive, at the engine's rate, from a reset state) at
 /// dynamic weight `w`.
-pub fn predict(engine: &mut InferenceEngine, poses: &[Pose], w: f32) -> Result<Vec<Vec<Vec3>>, ReportError> {
+pub fn predict(
+    engine: &mut InferenceEngine,
+    poses: &[Pose],
+    w: f32,
+) -> Result<Vec<Vec<Vec3>>, ReportError> {
     engine.reset();
     let mut out = Vec::with_capacity(poses.len());
     for pose in poses {
@@ -222,7 +352,11 @@ pub fn predict(engine: &mut InferenceEngine, poses: &[Pose], w: f32) -> Result<V
 
 /// Median milliseconds per frame of `engine` stepping through `poses` (cycled, from a reset
 /// state each cycle) for at least `frames` frames after a few warm-up frames.
-pub fn time_inference(engine: &mut InferenceEngine, poses: &[Pose], frames: usize) -> Result<f64, ReportError> {
+pub fn time_inference(
+    engine: &mut InferenceEngine,
+    poses: &[Pose],
+    frames: usize,
+) -> Result<f64, ReportError> {
     if poses.is_empty() {
         return Err(ReportError::Invalid("no poses to time inference on".into()));
     }
@@ -255,10 +389,17 @@ pub fn mean_distance_m(a: &[Vec3], b: &[Vec3]) -> f64 {
     if a.is_empty() || a.len() != b.len() {
         return 0.0;
     }
-    a.iter().zip(b).map(|(p, q)| f64::from((p - q).norm())).sum::<f64>() / a.len() as f64
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| f64::from((p - q).norm()))
+        .sum::<f64>()
+        / a.len() as f64
 }
 
 /// Largest distance between two frames, metres.
 pub fn max_distance_m(a: &[Vec3], b: &[Vec3]) -> f64 {
-    a.iter().zip(b).map(|(p, q)| f64::from((p - q).norm())).fold(0.0, f64::max)
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| f64::from((p - q).norm()))
+        .fold(0.0, f64::max)
 }

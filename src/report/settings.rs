@@ -5,11 +5,14 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::scene::config::{GarmentSource, SceneConfig, Split};
 use crate::scene::Scene;
+use crate::scene::config::{GarmentSource, SceneConfig, Split};
 use crate::train::{MetricRecord, TrainConfig};
 
-use super::runs::{RunSpec, RunSummary, engine_for, poses_at, time_inference, train_run};
+use super::runs::{
+    RunSpec, RunSummary, engine_for, interleaved_step_ms, median, poses_at, time_inference,
+    train_run,
+};
 use super::{Progress, ProgressFn, ReportError, rebuild_at};
 
 /// Settings of the sweep.
@@ -38,9 +41,9 @@ pub struct SettingRow {
     pub window_frames: usize,
     /// Effects of the scene (gravity, bending, collision, dynamics).
     pub effects: [bool; 4],
-    /// Median milliseconds per training step.
+    /// Median milliseconds per training step (measured round-robin over all settings).
     pub step_ms: f64,
-    /// Median milliseconds per inferred frame.
+    /// Median milliseconds per inferred frame (measured round-robin over all settings).
     pub inference_ms: f64,
     /// Metrics of the last validation pass.
     pub validation: MetricRecord,
@@ -51,9 +54,16 @@ pub struct SettingRow {
 impl SettingRow {
     /// Inferred frames per second.
     pub fn inference_fps(&self) -> f64 {
-        if self.inference_ms > 0.0 { 1e3 / self.inference_ms } else { 0.0 }
+        if self.inference_ms > 0.0 {
+            1e3 / self.inference_ms
+        } else {
+            0.0
+        }
     }
 }
+
+/// Turns one effect off.
+type SwitchOff = fn(&mut crate::scene::Effects);
 
 struct Variant {
     group: &'static str,
@@ -68,25 +78,64 @@ struct Variant {
 /// garments only), and each declared effect off.
 fn variants(scene: &Scene, config: &SceneConfig) -> Result<Vec<Variant>, ReportError> {
     let fps = scene.training_fps;
-    let base = |group, label: String, scene: Scene, fps, window_secs| Variant { group, label, scene, config: Some(config.clone()), fps, window_secs };
-    let mut out = vec![base("baseline", format!("{fps} fps, 0.5 s, {} vertices", scene.garment.vertex_count()), scene.clone(), fps, 0.5)];
+    let base = |group, label: String, scene: Scene, fps, window_secs| Variant {
+        group,
+        label,
+        scene,
+        config: Some(config.clone()),
+        fps,
+        window_secs,
+    };
+    let mut out = vec![base(
+        "baseline",
+        format!(
+            "{fps} fps, 0.5 s, {} vertices",
+            scene.garment.vertex_count()
+        ),
+        scene.clone(),
+        fps,
+        0.5,
+    )];
     for f in [15.0f32, 60.0] {
-        out.push(base("frame rate", format!("{f} fps"), scene.clone(), f, 0.5));
+        out.push(base(
+            "frame rate",
+            format!("{f} fps"),
+            scene.clone(),
+            f,
+            0.5,
+        ));
     }
     for w in [0.1f32, 1.0] {
-        out.push(base("window", format!("{w} s window"), scene.clone(), fps, w));
+        out.push(base(
+            "window",
+            format!("{w} s window"),
+            scene.clone(),
+            fps,
+            w,
+        ));
     }
     if let GarmentSource::Builtin { resolution, .. } = &config.garment {
-        let mut sizes: Vec<usize> = [4usize, 2].iter().map(|d| (resolution / d).max(crate::scene::procedural::garments::MIN_VERTICES)).filter(|n| n < resolution).collect();
+        let mut sizes: Vec<usize> = [4usize, 2]
+            .iter()
+            .map(|d| (resolution / d).max(crate::scene::procedural::garments::MIN_VERTICES))
+            .filter(|n| n < resolution)
+            .collect();
         sizes.dedup();
         for n in sizes {
             let (s, c) = rebuild_at(config, Some(n))?;
             let label = format!("{} vertices", s.garment.vertex_count());
-            out.push(Variant { group: "resolution", label, scene: s, config: Some(c), fps, window_secs: 0.5 });
+            out.push(Variant {
+                group: "resolution",
+                label,
+                scene: s,
+                config: Some(c),
+                fps,
+                window_secs: 0.5,
+            });
         }
     }
     let e = scene.effects;
-    let switches: [(&str, bool, fn(&mut crate::scene::Effects)); 4] = [
+    let switches: [(&str, bool, SwitchOff); 4] = [
         ("no gravity", e.gravity, |e| e.gravity = false),
         ("no bending", e.bending, |e| e.bending = false),
         ("no collision", e.collision, |e| e.collision = false),
@@ -98,57 +147,121 @@ fn variants(scene: &Scene, config: &SceneConfig) -> Result<Vec<Variant>, ReportE
             switch_off(&mut s.effects);
             let mut c = config.clone();
             switch_off(&mut c.effects);
-            out.push(Variant { group: "effects", label: label.into(), scene: s, config: Some(c), fps, window_secs: 0.5 });
+            out.push(Variant {
+                group: "effects",
+                label: label.into(),
+                scene: s,
+                config: Some(c),
+                fps,
+                window_secs: 0.5,
+            });
         }
     }
     Ok(out)
 }
 
-/// Runs every variant for an equal share of `options.budget_secs`. `progress` sees 0..1;
-/// returning false cancels.
-pub fn run_settings(scene: &Scene, config: &SceneConfig, options: &SettingsOptions, progress: &mut ProgressFn<'_>) -> Result<Vec<SettingRow>, ReportError> {
+/// Runs every variant for an equal share of `options.budget_secs`. Step and inference times
+/// are measured round-robin over all variants (so that a change of machine load during the
+/// sweep affects them alike); the training runs give the metrics reached and their own step
+/// counts. `progress` sees 0..1; returning false cancels.
+pub fn run_settings(
+    scene: &Scene,
+    config: &SceneConfig,
+    options: &SettingsOptions,
+    progress: &mut ProgressFn<'_>,
+) -> Result<Vec<SettingRow>, ReportError> {
+    let started = std::time::Instant::now();
     let all = variants(scene, config)?;
     let n = all.len().max(1);
-    // Each run keeps ~8% of its share for preparing data and timing inference.
-    let per_run = 0.92 * options.budget_secs / n as f64;
-    let mut rows = Vec::with_capacity(n);
-    for (k, v) in all.into_iter().enumerate() {
-        let train = TrainConfig { fps: v.fps, window_secs: v.window_secs, seed: options.seed, ..TrainConfig::default() };
-        let window_frames = train.window_frames();
-        let effects = [v.scene.effects.gravity, v.scene.effects.bending, v.scene.effects.collision, v.scene.effects.dynamics];
-        let vertices = v.scene.garment.vertex_count();
-        let label = v.label.clone();
-        let spec = RunSpec {
+    let specs: Vec<RunSpec> = all
+        .iter()
+        .map(|v| RunSpec {
             label: v.label.clone(),
             scene: v.scene.clone(),
-            config: v.config,
-            train,
+            config: v.config.clone(),
+            train: TrainConfig {
+                fps: v.fps,
+                window_secs: v.window_secs,
+                seed: options.seed,
+                ..TrainConfig::default()
+            },
             model: Default::default(),
-            budget_secs: per_run,
+            budget_secs: 0.0,
             min_steps: 2,
             validations: 6,
             snapshot_fractions: Vec::new(),
-        };
-        let run = train_run(spec, &mut |f| progress(&Progress { phase: "settings".into(), fraction: (k as f64 + f) / n as f64, detail: format!("training '{label}'") }))?;
-        let motion = [Split::Validation, Split::Train, Split::Test].into_iter().find_map(|s| v.scene.motions_in(s).next());
-        let inference_ms = match motion {
-            Some(m) => {
-                let mut engine = engine_for(&run.weights, &v.scene, v.fps)?;
-                let poses = poses_at(m, v.fps, (v.fps as usize).max(10));
-                time_inference(&mut engine, &poses, 100)?
+        })
+        .collect();
+    let mut say = |fraction: f64, detail: String| {
+        progress(&Progress {
+            phase: "settings".into(),
+            fraction,
+            detail,
+        })
+    };
+    let step_ms = interleaved_step_ms(&specs, 3, 2, &mut |f| {
+        say(0.1 * f, "timing training steps round-robin".into())
+    })?;
+    // Each run keeps ~8% of its share for preparing data and validation.
+    let left = (options.budget_secs - started.elapsed().as_secs_f64()).max(0.0);
+    let per_run = 0.92 * left / n as f64;
+    let mut runs = Vec::with_capacity(n);
+    for (k, mut spec) in specs.into_iter().enumerate() {
+        spec.budget_secs = per_run;
+        let label = spec.label.clone();
+        let run = train_run(spec, &mut |f| {
+            say(
+                0.1 + 0.88 * (k as f64 + f) / n as f64,
+                format!("training '{label}'"),
+            )
+        })?;
+        runs.push(run);
+    }
+    if !say(0.98, "timing inference round-robin".into()) {
+        return Err(ReportError::Cancelled);
+    }
+    let mut engines = Vec::with_capacity(n);
+    for (v, run) in all.iter().zip(&runs) {
+        let motion = [Split::Validation, Split::Train, Split::Test]
+            .into_iter()
+            .find_map(|s| v.scene.motions_in(s).next());
+        let poses = motion
+            .map(|m| poses_at(m, v.fps, (v.fps as usize).max(10)))
+            .unwrap_or_default();
+        engines.push((engine_for(&run.weights, &v.scene, v.fps)?, poses));
+    }
+    let mut inference: Vec<Vec<f64>> = vec![Vec::new(); n];
+    for _ in 0..5 {
+        for ((engine, poses), times) in engines.iter_mut().zip(inference.iter_mut()) {
+            if !poses.is_empty() {
+                times.push(time_inference(engine, poses, 40)?);
             }
-            None => 0.0,
-        };
+        }
+    }
+    let mut rows = Vec::with_capacity(n);
+    for (((v, run), step), times) in all.into_iter().zip(runs).zip(step_ms).zip(inference) {
+        let effects = [
+            v.scene.effects.gravity,
+            v.scene.effects.bending,
+            v.scene.effects.collision,
+            v.scene.effects.dynamics,
+        ];
+        let window_frames = TrainConfig {
+            fps: v.fps,
+            window_secs: v.window_secs,
+            ..TrainConfig::default()
+        }
+        .window_frames();
         rows.push(SettingRow {
             group: v.group.into(),
             label: v.label,
-            vertices,
+            vertices: v.scene.garment.vertex_count(),
             fps: v.fps,
             window_secs: v.window_secs,
             window_frames,
             effects,
-            step_ms: run.step_ms,
-            inference_ms,
+            step_ms: step,
+            inference_ms: median(&times),
             validation: run.validation,
             run: run.summary(),
         });
