@@ -18,7 +18,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Mat3, Mat4, Vec3, rotation_to_6d, safe_normalize};
-use crate::scene::{JointTransform, Motion, Pose, Skeleton};
+use crate::scene::{Motion, Pose, Skeleton};
 
 use super::ModelError;
 
@@ -73,34 +73,9 @@ pub fn select_input_joints(names: &[String], patterns: &[String]) -> Vec<usize> 
         .collect()
 }
 
-/// Forward kinematics into `out` (one `world_from_joint` per joint), without allocating.
-/// Same convention as [`Skeleton::world_from_joint`]: joint 0 takes the pose's root
-/// translation, missing rotations fall back to the rest rotation.
+/// Forward kinematics into `out` without allocating (see [`Skeleton::world_from_joint_into`]).
 pub fn world_from_joint_into(skeleton: &Skeleton, pose: &Pose, out: &mut [Mat4]) {
-    for j in 0..skeleton.len().min(out.len()) {
-        let Some(rest) = skeleton.rest_local.get(j) else {
-            return;
-        };
-        let local = JointTransform {
-            translation: if j == 0 {
-                pose.root_translation
-            } else {
-                rest.translation
-            },
-            rotation: pose.rotations.get(j).copied().unwrap_or(rest.rotation),
-            scale: rest.scale,
-        }
-        .to_matrix();
-        let parent = match skeleton.parents.get(j).copied().flatten() {
-            Some(p) if p < j => out[p],
-            _ => skeleton
-                .world_from_root_parent
-                .get(j)
-                .copied()
-                .unwrap_or_else(Mat4::identity),
-        };
-        out[j] = parent * local;
-    }
+    skeleton.world_from_joint_into(pose, out);
 }
 
 /// Rotation part of an affine matrix with scale (and shear) removed by Gram-Schmidt, as
@@ -433,6 +408,7 @@ impl DescriptorExtractor {
 mod tests {
     use super::*;
     use crate::geometry::Quat;
+    use crate::scene::JointTransform;
 
     fn skeleton(names: &[&str]) -> Skeleton {
         let n = names.len();

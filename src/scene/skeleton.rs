@@ -150,8 +150,16 @@ impl Skeleton {
 
     /// `world_from_joint` for every joint under `pose` (forward kinematics).
     pub fn world_from_joint(&self, pose: &Pose) -> Vec<Mat4> {
-        let mut out = Vec::with_capacity(self.len());
-        for j in 0..self.len() {
+        let mut out = vec![Mat4::identity(); self.len()];
+        self.world_from_joint_into(pose, &mut out);
+        out
+    }
+
+    /// Forward kinematics into `out` (one `world_from_joint` per joint), without allocating.
+    /// Joint 0 takes the pose's root translation; missing rotations fall back to the rest
+    /// rotation.
+    pub fn world_from_joint_into(&self, pose: &Pose, out: &mut [Mat4]) {
+        for j in 0..self.len().min(out.len()) {
             let rest = &self.rest_local[j];
             let local = JointTransform {
                 translation: if j == 0 {
@@ -167,9 +175,8 @@ impl Skeleton {
                 Some(p) => out[p],
                 None => self.world_from_root_parent[j],
             };
-            out.push(parent * local);
+            out[j] = parent * local;
         }
-        out
     }
 
     /// Skinning matrices `world_from_joint * joint_from_bind` for `pose`.

@@ -20,7 +20,7 @@ use rand::seq::SliceRandom;
 
 use crate::model::{ClothNet, GarmentLbs, InferenceWeights};
 use crate::physics::metrics::History;
-use crate::physics::{BodyBatch, ClothMetrics, FabricParams, PhysicsTerms};
+use crate::physics::{BodyBatch, ClothMetrics, Contacts, FabricParams, LossTerms, PhysicsTerms};
 use crate::scene::{Avatar, Garment};
 
 use super::TrainError;
@@ -165,6 +165,29 @@ impl NeuralSession {
         super::losses::skin_blended(self.lbs.rest(offsets), blended)
     }
 
+    /// Body contacts of the last frame `x_t` (when collision is on) and the static losses.
+    fn static_losses(
+        &self,
+        data: &Dataset,
+        batch: &Batch,
+        x_t: &Tensor<3>,
+    ) -> Result<(Option<Contacts>, LossTerms), String> {
+        let bodies = self.bodies(data, batch).map_err(|e| e.to_string())?;
+        let contacts = match &bodies {
+            Some(bodies) => Some(
+                self.terms
+                    .contacts(x_t, bodies)
+                    .map_err(|e| e.to_string())?,
+            ),
+            None => None,
+        };
+        let losses = self
+            .terms
+            .static_losses_with(x_t, contacts.as_ref())
+            .map_err(|e| e.to_string())?;
+        Ok((contacts, losses))
+    }
+
     fn bodies(&self, data: &Dataset, batch: &Batch) -> Result<Option<BodyBatch>, TrainError> {
         if !self.terms.effects().collision {
             return Ok(None);
@@ -207,21 +230,7 @@ impl Session for NeuralSession {
         };
         let x = self.predict(&batch, augment);
         let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
-        let bodies = self
-            .bodies(&self.train, &batch)
-            .map_err(|e| e.to_string())?;
-        let contacts = match &bodies {
-            Some(bodies) => Some(
-                self.terms
-                    .contacts(&x_t, bodies)
-                    .map_err(|e| e.to_string())?,
-            ),
-            None => None,
-        };
-        let losses = self
-            .terms
-            .static_losses_with(&x_t, contacts.as_ref())
-            .map_err(|e| e.to_string())?;
+        let (contacts, losses) = self.static_losses(&self.train, &batch, &x_t)?;
         let mut total = losses
             .total()
             .unwrap_or_else(|| Tensor::zeros([1], &self.device));
@@ -284,21 +293,14 @@ impl Session for NeuralSession {
             return Err("no validation frames".into());
         }
         let batch = data.batch(&windows, self.window_frames(), &self.garment.skin);
-        let bodies = self.bodies(data, &batch).map_err(|e| e.to_string())?;
         let x = self.predict(&batch, 0).detach();
         let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
-        let contacts = match &bodies {
-            Some(bodies) => Some(
-                self.terms
-                    .contacts(&x_t, bodies)
-                    .map_err(|e| e.to_string())?,
-            ),
-            None => None,
+        let data = if self.validation.is_empty() {
+            &self.train
+        } else {
+            &self.validation
         };
-        let losses = self
-            .terms
-            .static_losses_with(&x_t, contacts.as_ref())
-            .map_err(|e| e.to_string())?;
+        let (contacts, losses) = self.static_losses(data, &batch, &x_t)?;
         let mut loss = losses
             .total()
             .map(|t| t.into_scalar::<f64>())
