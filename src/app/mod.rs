@@ -9,6 +9,7 @@
 //! - Training runs on the trainer's thread ([`training::TrainingControl`]); the UI drains its
 //!   events once per frame and never waits for it.
 
+pub mod cost_panel;
 pub mod export;
 pub mod frame_builder;
 pub mod loading;
@@ -58,6 +59,8 @@ pub struct NeuralClothApp {
     pub viewport: Viewport,
     /// Show the metric curves panel.
     pub show_curves: bool,
+    /// The accuracy/time experiment of the Cost panel.
+    pub cost: cost_panel::CostPanel,
     /// Exporter behind the export dialog.
     exporter: Option<Box<dyn export::Exporter>>,
     /// Scene revision the camera was framed for.
@@ -87,6 +90,7 @@ impl NeuralClothApp {
             state,
             viewport: Viewport::new(render_state),
             show_curves: true,
+            cost: cost_panel::CostPanel::default(),
             exporter: options.exporter,
             framed_revision: 0,
             notify: notify.clone(),
@@ -128,6 +132,7 @@ impl NeuralClothApp {
                     self.training_ui(ui);
                     self.fabric_ui(ui);
                     self.effects_ui(ui);
+                    self.cost_ui(ui);
                 });
             });
         if self.show_curves {
