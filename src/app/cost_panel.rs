@@ -90,14 +90,14 @@ impl CostPanel {
 
     /// Collects a finished experiment (never blocks on a running one).
     pub fn poll(&mut self) {
-        if self.job.as_ref().is_some_and(|j| j.thread.is_finished()) {
-            if let Some(job) = self.job.take() {
-                self.result = Some(
-                    job.thread
-                        .join()
-                        .unwrap_or_else(|_| Err("the experiment thread panicked".into())),
-                );
-            }
+        if self.job.as_ref().is_some_and(|j| j.thread.is_finished())
+            && let Some(job) = self.job.take()
+        {
+            self.result = Some(
+                job.thread
+                    .join()
+                    .unwrap_or_else(|_| Err("the experiment thread panicked".into())),
+            );
         }
     }
 
