@@ -66,7 +66,7 @@ pub struct BenchReport {
 pub struct BenchOptions {
     /// Garment sizes in degrees of freedom.
     pub dofs: Vec<usize>,
-    /// Frames timed per inference run.
+    /// Frames timed per inference run (at least; small garments run a second of frames).
     pub frames: usize,
     /// Batch sizes of the training benchmark (empty: skip); the first one is also timed with
     /// each effect switched off.

@@ -81,6 +81,9 @@ pub struct Disentanglement {
     pub monotone: bool,
     /// Seconds after the body stops (mid-spin) and |z_D| (L2 norm) there.
     pub decay: Vec<(f32, f32)>,
+    /// |z_S| (L2) at the sweep frame (absent in results written before it was recorded).
+    #[serde(default)]
+    pub zs_norm: Option<f32>,
 }
 
 /// Hem radius under the spin.
@@ -507,6 +510,7 @@ fn disentangle(scene: &Scene, ours: &RunOutcome, fps: f32) -> Result<Disentangle
     }
     let norm = |z: &[f32]| z.iter().map(|v| v * v).sum::<f32>().sqrt();
     decay.push((0.0, norm(engine.dynamic_code())));
+    let zs_norm = Some(norm(engine.static_code()));
     let hold = poses.last().cloned().unwrap_or(still_pose);
     for k in 1..=(2.0 * fps).round() as usize {
         engine.step(&hold, 1.0)?;
@@ -523,6 +527,7 @@ fn disentangle(scene: &Scene, ours: &RunOutcome, fps: f32) -> Result<Disentangle
         w,
         displacement_mm,
         monotone,
+        zs_norm,
         decay,
     })
 }

@@ -11,13 +11,15 @@
 //! - [`fidelity`]: disentanglement (`z_D = 0` for a still body, the `w` sweep), SNUG-style
 //!   inertia against ours on a spinning skirt, and the Tab. 2 ablation.
 //! - [`runs`]: timed training runs stepped synchronously, inference timing.
-//! - [`plots`] (SVG through plotters) and [`markdown`] (`REPORT.md`) write the results.
+//! - [`plots`] (generic SVG panels through plotters), [`figures`] (the report's figures) and
+//!   [`markdown`] (`REPORT.md`) write the results.
 //!
 //! Every experiment runs within a wall-clock budget ([`Plan`]); the numbers are measured on
 //! the machine that runs it, and the Markdown states the machine and the command.
 
 pub mod accuracy;
 pub mod fidelity;
+pub mod figures;
 pub mod markdown;
 pub mod plots;
 pub mod runs;
@@ -325,7 +327,7 @@ pub fn write_report(report: &Report, out_dir: &Path) -> Result<Vec<PathBuf>, Rep
         ReportError::Invalid(format!("cannot create {}: {e}", figures_dir.display()))
     })?;
     let mut written = Vec::new();
-    for (name, svg) in plots::all_figures(report)? {
+    for (name, svg) in figures::all_figures(report)? {
         let path = figures_dir.join(name);
         write_atomic(&path, svg.as_bytes())?;
         written.push(path);

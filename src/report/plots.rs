@@ -2,12 +2,11 @@
 //!
 //! A figure is a grid of panels; a panel is either line/point series on linear or log10 axes
 //! (log axes plot `log10` of the data and label the ticks with the original values) or
-//! horizontal bars.
+//! horizontal bars. [`super::figures`] assembles the report's figures from these.
 
 use plotters::prelude::*;
 
-use super::accuracy::Method;
-use super::{Report, ReportError};
+use super::ReportError;
 
 /// One data series of a panel.
 #[derive(Clone, Debug, Default)]
@@ -93,6 +92,26 @@ fn tick(v: f64) -> String {
             .trim_end_matches('0')
             .trim_end_matches('.')
             .to_string()
+    }
+}
+
+/// Tick value on a linear axis spanning `span`: enough digits to tell ticks about a fifth of
+/// the span apart.
+fn tick_in(v: f64, span: f64) -> String {
+    if !(span.is_finite() && span > 0.0) {
+        return tick(v);
+    }
+    let step_exp = (span / 5.0).log10().floor() as i32;
+    let a = v.abs();
+    if a < 0.5 * 10f64.powi(step_exp) {
+        return "0".into();
+    }
+    if (1e-3..1e5).contains(&a) || step_exp >= 0 {
+        let decimals = (-step_exp).max(0) as usize;
+        format!("{v:.decimals$}")
+    } else {
+        let digits = (a.log10().floor() as i32 - step_exp).clamp(0, 6) as usize;
+        format!("{v:.digits$e}")
     }
 }
 
@@ -185,8 +204,21 @@ fn lines<DB: DrawingBackend>(
         .y_label_area_size(56)
         .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(|e| plot_err(name, e))?;
-    let fx = move |v: &f64| tick(if log_x { 10f64.powf(*v) } else { *v });
-    let fy = move |v: &f64| tick(if log_y { 10f64.powf(*v) } else { *v });
+    let (span_x, span_y) = (x1 - x0, y1 - y0);
+    let fx = move |v: &f64| {
+        if log_x {
+            tick(10f64.powf(*v))
+        } else {
+            tick_in(*v, span_x)
+        }
+    };
+    let fy = move |v: &f64| {
+        if log_y {
+            tick(10f64.powf(*v))
+        } else {
+            tick_in(*v, span_y)
+        }
+    };
     chart
         .configure_mesh()
         .x_desc(panel.x_desc.as_str())
@@ -290,27 +322,8 @@ fn bars_panel<DB: DrawingBackend>(
     Ok(())
 }
 
-/// Running mean of the y values over `window` points (centred), for noisy per-step curves.
-fn smooth(points: &[(f64, f64)], window: usize) -> Vec<(f64, f64)> {
-    let half = window / 2;
-    (0..points.len())
-        .map(|i| {
-            let lo = i.saturating_sub(half);
-            let hi = (i + half + 1).min(points.len());
-            let ys: Vec<f64> = points
-                .get(lo..hi)
-                .unwrap_or_default()
-                .iter()
-                .map(|p| p.1)
-                .filter(|y| y.is_finite())
-                .collect();
-            let x = points.get(i).map_or(0.0, |p| p.0);
-            (x, ys.iter().sum::<f64>() / ys.len().max(1) as f64)
-        })
-        .collect()
-}
-
-fn lines_panel(
+/// A panel of line/point series.
+pub fn lines_panel(
     title: &str,
     x: &str,
     y: &str,
@@ -330,7 +343,8 @@ fn lines_panel(
     }
 }
 
-fn series(
+/// A series of `(x, y)` points with palette colour `color`.
+pub fn series(
     label: impl Into<String>,
     points: Vec<(f64, f64)>,
     color: usize,
@@ -344,320 +358,6 @@ fn series(
         line,
         markers,
     }
-}
-
-/// Every figure of the report as `(file name, SVG text)`.
-pub fn all_figures(r: &Report) -> Result<Vec<(String, String)>, ReportError> {
-    let mut out = Vec::new();
-    let a = &r.accuracy;
-    // Accuracy against time.
-    let sims: Vec<_> = a
-        .points
-        .iter()
-        .filter(|p| p.method == Method::Simulator)
-        .collect();
-    let nets: Vec<_> = a
-        .points
-        .iter()
-        .filter(|p| p.method == Method::Neural)
-        .collect();
-    let pick = |pts: &[&super::CostPoint], f: fn(&super::CostPoint) -> f64| {
-        pts.iter()
-            .map(|p| (p.ms_per_frame, f(p)))
-            .collect::<Vec<_>>()
-    };
-    let accuracy = [
-        lines_panel(
-            "Error to the reference vs cost per frame",
-            "ms per frame (log)",
-            "vertex error, mm (log)",
-            vec![
-                series("simulator, mean", pick(&sims, |p| p.mean_mm), 0, true, true),
-                series("simulator, p95", pick(&sims, |p| p.p95_mm), 5, true, true),
-                series("network, mean", pick(&nets, |p| p.mean_mm), 1, false, true),
-                series("network, p95", pick(&nets, |p| p.p95_mm), 3, false, true),
-            ],
-            true,
-            true,
-        ),
-        lines_panel(
-            "Eq. 8 residual vs cost per frame",
-            "ms per frame (log)",
-            "RMS residual / mean vertex weight (log)",
-            vec![
-                series("simulator", pick(&sims, |p| p.residual_rms), 0, true, true),
-                series("network", pick(&nets, |p| p.residual_rms), 1, false, true),
-                series(
-                    "reference",
-                    vec![(a.reference.ms_per_frame, a.reference.residual_rms)],
-                    2,
-                    false,
-                    true,
-                ),
-            ],
-            true,
-            true,
-        ),
-    ];
-    out.push((
-        "accuracy_vs_time.svg".to_string(),
-        figure("accuracy_vs_time", &accuracy, 2, (1200, 480))?,
-    ));
-    // Training curves of the default run.
-    let metric = |k: usize, rec: &crate::train::MetricRecord| {
-        rec.named().get(k).map(|n| n.1).unwrap_or(f64::NAN)
-    };
-    let names = [
-        "strain",
-        "bending (rad)",
-        "collision (%)",
-        "gravity (J)",
-        "inertia (J)",
-    ];
-    let curves: Vec<Panel> = names
-        .iter()
-        .enumerate()
-        .map(|(k, n)| {
-            let train: Vec<(f64, f64)> = a
-                .training
-                .train
-                .iter()
-                .map(|rec| (rec.wall_secs, metric(k, rec)))
-                .collect();
-            let val: Vec<(f64, f64)> = a
-                .training
-                .validation
-                .iter()
-                .map(|rec| (rec.wall_secs, metric(k, rec)))
-                .collect();
-            let smoothed = smooth(&train, (train.len() / 40).max(1));
-            lines_panel(
-                n,
-                "seconds of training",
-                n,
-                vec![
-                    series("train (running mean)", smoothed, 7, true, false),
-                    series("validation", val, 1, true, true),
-                ],
-                false,
-                false,
-            )
-        })
-        .collect();
-    out.push((
-        "training_curves.svg".to_string(),
-        figure("training_curves", &curves, 3, (1350, 700))?,
-    ));
-    // Settings against cost.
-    let bars = |f: fn(&super::SettingRow) -> f64| {
-        r.settings
-            .iter()
-            .map(|s| (s.label.clone(), f(s)))
-            .collect::<Vec<_>>()
-    };
-    let settings = [
-        Panel {
-            title: "Training step".into(),
-            x_desc: "ms per step (median)".into(),
-            y_desc: String::new(),
-            kind: PanelKind::Bars(bars(|s| s.step_ms)),
-        },
-        Panel {
-            title: "Inference".into(),
-            x_desc: "frames per second (1 thread)".into(),
-            y_desc: String::new(),
-            kind: PanelKind::Bars(bars(|s| s.inference_fps())),
-        },
-    ];
-    out.push((
-        "settings_cost.svg".to_string(),
-        figure("settings_cost", &settings, 2, (1300, 520))?,
-    ));
-    // Fig. 6: window and frame rate against the validation metrics over time.
-    let curve = |group: &str, k: usize| -> Vec<Series> {
-        r.settings
-            .iter()
-            .filter(|s| s.group == group || s.group == "baseline")
-            .enumerate()
-            .map(|(i, s)| {
-                series(
-                    s.label.clone(),
-                    s.run
-                        .validation
-                        .iter()
-                        .map(|v| (v.wall_secs, metric(k, v)))
-                        .collect(),
-                    i,
-                    true,
-                    true,
-                )
-            })
-            .collect()
-    };
-    let fig6 = [
-        lines_panel(
-            "Window: validation inertia",
-            "seconds of training",
-            "inertia (J)",
-            curve("window", 4),
-            false,
-            false,
-        ),
-        lines_panel(
-            "Window: validation gravity",
-            "seconds of training",
-            "gravity (J)",
-            curve("window", 3),
-            false,
-            false,
-        ),
-        lines_panel(
-            "Frame rate: validation inertia",
-            "seconds of training",
-            "inertia (J)",
-            curve("frame rate", 4),
-            false,
-            false,
-        ),
-        lines_panel(
-            "Frame rate: validation gravity",
-            "seconds of training",
-            "gravity (J)",
-            curve("frame rate", 3),
-            false,
-            false,
-        ),
-    ];
-    out.push((
-        "window_fps_curves.svg".to_string(),
-        figure("window_fps_curves", &fig6, 2, (1200, 800))?,
-    ));
-    // Disentanglement.
-    let d = &r.fidelity.disentanglement;
-    let dis = [
-        lines_panel(
-            &format!("w sweep on the spin at {:.2} s", d.sweep_time_secs),
-            "w",
-            "mean displacement from w = 0, mm",
-            vec![series(
-                "ours",
-                d.w.iter()
-                    .zip(&d.displacement_mm)
-                    .map(|(w, m)| (f64::from(*w), *m))
-                    .collect(),
-                1,
-                true,
-                true,
-            )],
-            false,
-            false,
-        ),
-        lines_panel(
-            "|z_D| after the body stops mid-spin",
-            "seconds since the stop",
-            "|z_D| (L2)",
-            vec![series(
-                "ours",
-                d.decay
-                    .iter()
-                    .map(|(t, z)| (f64::from(*t), f64::from(*z)))
-                    .collect(),
-                0,
-                true,
-                true,
-            )],
-            false,
-            false,
-        ),
-    ];
-    out.push((
-        "disentanglement.svg".to_string(),
-        figure("disentanglement", &dis, 2, (1200, 460))?,
-    ));
-    // Skirt radius under the spin.
-    let s = &r.fidelity.skirt;
-    let radius = |v: &[f32]| {
-        s.times
-            .iter()
-            .zip(v)
-            .map(|(t, r)| (f64::from(*t), 1e3 * f64::from(*r)))
-            .collect::<Vec<_>>()
-    };
-    let skirt = [lines_panel(
-        "Hem radius about the body axis under the spin",
-        "seconds",
-        "mean hem radius, mm",
-        vec![
-            series("ours (w = 1)", radius(&s.ours_m), 1, true, false),
-            series("SNUG-style", radius(&s.snug_m), 0, true, false),
-            series("ours, static (w = 0)", radius(&s.static_m), 3, true, false),
-            series(
-                "SNUG-style, static (w = 0)",
-                radius(&s.snug_static_m),
-                4,
-                true,
-                false,
-            ),
-            series("skinned template", radius(&s.skinned_m), 7, true, false),
-            series(
-                format!("simulator {} it", s.reference_iterations),
-                radius(&s.reference_m),
-                2,
-                true,
-                false,
-            ),
-        ],
-        false,
-        false,
-    )];
-    out.push((
-        "skirt_spin.svg".to_string(),
-        figure("skirt_spin", &skirt, 1, (900, 480))?,
-    ));
-    // Fig. 7: ablation curves.
-    let abl = |k: usize| -> Vec<Series> {
-        r.fidelity
-            .ablation
-            .iter()
-            .enumerate()
-            .map(|(i, row)| {
-                series(
-                    row.label.clone(),
-                    row.run
-                        .validation
-                        .iter()
-                        .map(|v| (v.wall_secs, metric(k, v)))
-                        .collect(),
-                    i,
-                    true,
-                    true,
-                )
-            })
-            .collect()
-    };
-    let ablation = [
-        lines_panel(
-            "Validation collisions",
-            "seconds of training",
-            "collision (%)",
-            abl(2),
-            false,
-            false,
-        ),
-        lines_panel(
-            "Validation inertia",
-            "seconds of training",
-            "inertia (J)",
-            abl(4),
-            false,
-            false,
-        ),
-    ];
-    out.push((
-        "ablation_curves.svg".to_string(),
-        figure("ablation_curves", &ablation, 2, (1200, 460))?,
-    ));
-    Ok(out)
 }
 
 #[cfg(test)]
@@ -694,5 +394,8 @@ mod tests {
         assert_eq!(tick(0.0), "0");
         assert_eq!(tick(2.5), "2.5");
         assert_eq!(tick(150.0), "150");
+        assert_eq!(tick_in(1.1031, 0.001), "1.1031");
+        assert_eq!(tick_in(8.2e-5, 4e-6), "8.20e-5");
+        assert_eq!(tick_in(20.0, 50.0), "20");
     }
 }
