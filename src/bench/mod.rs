@@ -194,11 +194,12 @@ pub fn bench_inference(
             let h = engine.basis_input();
             rows_read += h.iter().filter(|v| **v != 0.0).count() as f64 / h.len().max(1) as f64;
             // With two buffers, frames alternate between them.
+            let readers = if parallel { threads } else { 1 };
             match (&floor_data, &stored_floor_data) {
                 (_, Some(data)) if k % 2 == 1 => {
-                    stored_floor_times.push(read_pass_secs(data, threads))
+                    stored_floor_times.push(read_pass_secs(data, readers))
                 }
-                (Some(data), _) => floor_times.push(read_pass_secs(data, threads)),
+                (Some(data), _) => floor_times.push(read_pass_secs(data, readers)),
                 _ => {}
             }
         }

@@ -66,16 +66,17 @@ fn floor_of(r: &BenchReport, bytes: usize, threads: usize) -> Option<&MemoryBand
         .min_by(|a, b| a.ms_per_pass.total_cmp(&b.ms_per_pass))
 }
 
-/// Floor in milliseconds for streaming `bytes` with the row's threads: the reads paired with
-/// the row's frames when it has them (scaled from the f32 basis size), else the best separate
-/// read of the run.
+/// Floor in milliseconds for streaming `bytes` with the threads the row used: the reads paired
+/// with the row's frames when it has them, else the best separate read of the run.
 fn floor_ms(r: &BenchReport, b: &InferenceBench, bytes: usize) -> Option<f64> {
     let paired = if bytes == b.basis_f32_bytes {
         b.paired_floor_ms
     } else {
         b.paired_stored_floor_ms
     };
-    paired.or_else(|| floor_of(r, bytes, b.threads).map(|m| m.ms_per_pass))
+    // A garment kept on the calling thread is held to the one-thread floor.
+    let threads = if b.parallel { b.threads } else { 1 };
+    paired.or_else(|| floor_of(r, bytes, threads).map(|m| m.ms_per_pass))
 }
 
 fn ratio(b: &InferenceBench, floor_ms: Option<f64>) -> String {
