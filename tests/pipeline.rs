@@ -72,6 +72,19 @@ fn setup(dir: &Path, train: TrainConfig, location: Option<RunLocation>) -> Train
     }
 }
 
+/// A fresh inference engine of a trained run on its own scene, at the training rate.
+fn engine_of(trained: &neural_cloth::train::TrainedModel) -> InferenceEngine {
+    InferenceEngine::from_scene(
+        trained.weights.clone(),
+        &trained.scene.avatar,
+        &trained.scene.garment,
+        &DescriptorConfig::default(),
+        30.0,
+        InferenceOptions::default(),
+    )
+    .unwrap()
+}
+
 fn quick_config() -> TrainConfig {
     TrainConfig {
         batch_size: 4,
@@ -353,17 +366,7 @@ fn baked_caches_round_trip_and_bad_requests_leave_nothing() {
     let trained = load_trained(&run).unwrap();
     let scene = &trained.scene;
     let motion = scene.motions[0].0.clone();
-    let engine = || {
-        InferenceEngine::from_scene(
-            trained.weights.clone(),
-            &scene.avatar,
-            &scene.garment,
-            &DescriptorConfig::default(),
-            30.0,
-            InferenceOptions::default(),
-        )
-        .unwrap()
-    };
+    let engine = || engine_of(&trained);
     // Reference frames straight from the engine at the training rate.
     let mut reference = engine();
     let expected: Vec<Vec<_>> = motion
@@ -550,17 +553,7 @@ fn gltf_export_validates_and_reproduces_the_baked_frames() {
     let trained = load_trained(&run).unwrap();
     let scene = &trained.scene;
     let motion = scene.motions[1].0.clone(); // the spin: large offsets from the dynamics
-    let engine = || {
-        InferenceEngine::from_scene(
-            trained.weights.clone(),
-            &scene.avatar,
-            &scene.garment,
-            &DescriptorConfig::default(),
-            30.0,
-            InferenceOptions::default(),
-        )
-        .unwrap()
-    };
+    let engine = || engine_of(&trained);
     let glb = dir.path().join("spin.glb");
     let pc2 = dir.path().join("spin.pc2");
     let mut reports = Vec::new();
