@@ -157,6 +157,7 @@ fn synthetic_history() -> MetricHistory {
             collision_pct: 25.0 * (-s / 40.0).exp() + 0.5,
             gravity: -0.4 - 0.1 * (-s / 50.0).exp(),
             inertia: 0.01 * (-s / 30.0).exp(),
+            ..Default::default()
         };
         history.train.push(record);
         if step % 50 == 0 {
@@ -444,6 +445,7 @@ impl TrainerLauncher for FakeLauncher {
             snapshot_every: 10,
             checkpoint_every: 1000,
             max_rollbacks: 3,
+            dead_limit_pct: 90.0,
         };
         if let Ok(mut r) = self.requests.lock() {
             r.push(request);
@@ -532,4 +534,32 @@ fn without_a_trainer_train_reports_an_error() {
             .last_error()
             .is_some_and(|e| e.contains("no trainer"))
     );
+}
+
+/// The "Check against simulation" button of the Cost panel.
+fn check_button_disabled(h: &mut Harness<'static, NeuralClothApp>) -> bool {
+    use egui_kittest::kittest::NodeT;
+    let label = "Check against simulation";
+    let button = egui::accesskit::Role::Button;
+    h.get_by_role_and_label(button, label).scroll_to_me();
+    h.run();
+    h.get_by_role_and_label(button, label)
+        .accesskit_node()
+        .is_disabled()
+}
+
+#[test]
+fn check_against_simulation_needs_a_trained_run() {
+    let mut h = harness(None);
+    h.get_by_label("Cost").scroll_to_me();
+    h.run();
+    h.get_by_label("Cost").click_accesskit();
+    h.run();
+    assert!(check_button_disabled(&mut h), "disabled without a run");
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("run.json"), "{}").unwrap();
+    std::fs::write(dir.path().join("latest.json"), "{\"step\": 1}").unwrap();
+    h.state_mut().state.training.run_dir = Some(dir.path().to_path_buf());
+    h.run();
+    assert!(!check_button_disabled(&mut h), "enabled with a checkpoint");
 }

@@ -318,6 +318,12 @@ impl<S: Session> Session for Poisoned<S> {
     fn set_window(&mut self, window_secs: f32) -> Result<(), String> {
         self.inner.set_window(window_secs)
     }
+    fn activity_summary(&self) -> Option<String> {
+        self.inner.activity_summary()
+    }
+    fn revive_dead_units(&mut self) -> Result<usize, String> {
+        self.inner.revive_dead_units()
+    }
 }
 
 #[test]
@@ -675,4 +681,473 @@ fn gltf_export_validates_and_reproduces_the_baked_frames() {
         worst <= max_error + 1e-4,
         "posed error {worst} m above the stated compression error {max_error} m"
     );
+}
+
+/// The tiny scene with the built-in skirt (waistband pinned) and `effects` applied.
+fn tiny_skirt(edit: impl Fn(&mut neural_cloth::scene::config::Effects)) -> (Scene, SceneConfig) {
+    let text = TINY
+        .replace("builtin = \"tshirt\"", "builtin = \"skirt\"")
+        .replace("resolution = 400", "resolution = 300");
+    let mut config = SceneConfig::from_toml_str(&text).unwrap();
+    config.effects.pinning = true;
+    edit(&mut config.effects);
+    (build_builtin(&config).unwrap(), config)
+}
+
+/// Validation losses of 3 steps of training the tiny skirt with `edit` applied to its effects.
+fn skirt_losses(edit: impl Fn(&mut neural_cloth::scene::config::Effects)) -> Vec<f64> {
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, scene_config) = tiny_skirt(edit);
+    let (mut session, _) = prepare(TrainSetup {
+        scene,
+        scene_config,
+        train: quick_config(),
+        model: small_model(),
+        descriptors: DescriptorConfig::default(),
+        fabric: None,
+        location: RunLocation::At(dir.path().to_path_buf()),
+    })
+    .unwrap();
+    let mut out = Vec::new();
+    for _ in 0..3 {
+        let step = session.step().unwrap();
+        let v = session.validate().unwrap();
+        assert!(step.is_finite() && v.is_finite(), "{step:?} {v:?}");
+        out.push(step.loss);
+        out.push(v.loss);
+    }
+    out
+}
+
+/// Issue 11: a scene's `pinning = true` was silently ignored by the trainer (the same skirt
+/// trained bit-identically with pinning on and off). Every effect a scene declares must change
+/// what training does.
+#[test]
+fn pinning_and_every_other_effect_act_in_training() {
+    use neural_cloth::scene::config::Effects;
+    let all = skirt_losses(|_| {});
+    type Toggle = (&'static str, fn(&mut Effects));
+    let toggles: [Toggle; 5] = [
+        ("pinning", |e| e.pinning = false),
+        ("gravity", |e| e.gravity = false),
+        ("bending", |e| e.bending = false),
+        ("collision", |e| e.collision = false),
+        ("dynamics", |e| e.dynamics = false),
+    ];
+    for (name, toggle) in toggles {
+        let without = skirt_losses(toggle);
+        assert_ne!(
+            all, without,
+            "turning {name} off changed nothing in training"
+        );
+    }
+}
+
+/// Issue 11: the pinned waistband of a skirt must stay at its skinned place in training, as it
+/// does in the simulator: after training with a large initial basis, pinned vertices are
+/// closer to the skinned template with pinning on than with it off.
+#[test]
+fn pinning_adds_a_positive_term_when_the_waistband_moves() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, scene_config) = tiny_skirt(|_| {});
+    let mut model = small_model();
+    model.basis_init_gain = 30.0;
+    // Same initial network with and without pinning: no warm start, no data-dependent init.
+    let isolated = TrainConfig {
+        predrape_secs: 0.0,
+        centre_init: false,
+        ..quick_config()
+    };
+    let (mut session, _) = prepare(TrainSetup {
+        scene,
+        scene_config,
+        train: isolated.clone(),
+        model,
+        descriptors: DescriptorConfig::default(),
+        fabric: None,
+        location: RunLocation::At(dir.path().to_path_buf()),
+    })
+    .unwrap();
+    // A random basis moves the waistband: the pinning term is part of the loss.
+    let with = session.validate().unwrap();
+    let dir2 = tempfile::tempdir().unwrap();
+    let (scene, scene_config) = tiny_skirt(|e| e.pinning = false);
+    let mut model = small_model();
+    model.basis_init_gain = 30.0;
+    let (mut unpinned, _) = prepare(TrainSetup {
+        scene,
+        scene_config,
+        train: isolated,
+        model,
+        descriptors: DescriptorConfig::default(),
+        fabric: None,
+        location: RunLocation::At(dir2.path().to_path_buf()),
+    })
+    .unwrap();
+    let without = unpinned.validate().unwrap();
+    assert!(
+        with.loss > without.loss,
+        "pinning adds a positive term: {} vs {}",
+        with.loss,
+        without.loss
+    );
+}
+
+/// Issue 11: a network whose decoder died (all units of its last layer zero, so it outputs the
+/// template for ever) must not go on silently: the loop reports it and revives the units.
+#[test]
+fn a_dead_decoder_is_reported_and_revived() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = TrainConfig {
+        max_steps: Some(6),
+        validate_every: 2,
+        ..quick_config()
+    };
+    let (mut session, loop_config) = prepare(setup(dir.path(), config, None)).unwrap();
+    let mut model = session.model().clone();
+    let last = model.decoder.mlp.layers.last_mut().unwrap();
+    last.bias = last.bias.clone().map(|b| {
+        b.map(|t| {
+            let device = t.device();
+            Tensor::<1>::from_data(t.zeros_like().add_scalar(-1e3).into_data(), &device)
+                .require_grad()
+        })
+    });
+    session.set_model(model);
+    let dead = session.validate().unwrap();
+    assert_eq!(dead.dead_units_pct, 100.0, "{dead:?}");
+    let (events, result) =
+        run_to_end(TrainerHandle::spawn_session(session, loop_config, None).unwrap());
+    let stalled: Vec<(u64, String, String)> = events
+        .iter()
+        .filter_map(|e| match e {
+            TrainEvent::Stalled {
+                step,
+                reason,
+                remedy,
+            } => Some((*step, reason.clone(), remedy.clone())),
+            _ => None,
+        })
+        .collect();
+    assert!(!stalled.is_empty(), "no stall event");
+    assert_eq!(stalled[0].0, 2);
+    assert!(stalled[0].1.contains("dead"), "{:?}", stalled[0]);
+    assert!(stalled[0].2.contains("revived"), "{:?}", stalled[0]);
+    let summary = result.unwrap();
+    let last = summary.last_validation.unwrap();
+    assert!(
+        last.dead_units_pct < 90.0,
+        "still dead after the remedy: {last:?}"
+    );
+}
+
+/// `neural-cloth compare` and `neural_cloth::train::compare` on a tiny skirt.
+mod compare {
+    use std::path::Path;
+
+    use neural_cloth::physics::simulator::{SimOptions, simulate};
+    use neural_cloth::physics::{Effects, FabricParams};
+    use neural_cloth::scene::config::SceneConfig;
+    use neural_cloth::scene::procedural::build_builtin;
+    use neural_cloth::train::compare::{
+        CompareOptions, ComparePhase, Sequences, compare, compare_frames, measure_motion,
+        reaches_below_hips, reference_dir, still_frames,
+    };
+    use neural_cloth::train::{
+        BackendKind, RunLocation, TrainConfig, TrainSetup, Trainer, device_for, load_trained,
+    };
+
+    /// A 200-vertex skirt (held up by its pinned waistband), a 0.3 s walk to train on and a
+    /// 0.3 s idle to validate on.
+    const SKIRT: &str = r#"
+name = "tiny skirt"
+training_fps = 30.0
+[avatar]
+builtin = "mannequin"
+[garment]
+builtin = "skirt"
+resolution = 200
+[[motions]]
+builtin = "walk"
+duration_secs = 0.3
+[[motions]]
+builtin = "idle"
+duration_secs = 0.3
+split = "validation"
+[effects]
+pinning = true
+"#;
+
+    /// Cheap reference settings.
+    fn quick() -> CompareOptions {
+        CompareOptions {
+            iterations: 8,
+            settle_secs: 0.1,
+            ..Default::default()
+        }
+    }
+
+    /// Trains the skirt for two steps into `run`.
+    fn train_tiny(run: &Path) {
+        let config = SceneConfig::from_toml_str(SKIRT).unwrap();
+        let scene = build_builtin(&config).unwrap();
+        let setup = TrainSetup {
+            scene,
+            scene_config: config,
+            train: TrainConfig {
+                batch_size: 2,
+                window_secs: 0.2,
+                seed: 3,
+                max_steps: Some(2),
+                checkpoint_every: 2,
+                validate_every: 2,
+                ..Default::default()
+            },
+            model: super::small_model(),
+            descriptors: Default::default(),
+            fabric: None,
+            location: RunLocation::At(run.to_path_buf()),
+        };
+        let (_, result) = super::run_to_end(Trainer::spawn(setup, None).unwrap());
+        assert_eq!(result.unwrap().steps, 2);
+    }
+
+    #[test]
+    fn compare_gives_finite_numbers_on_a_tiny_run() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = dir.path().join("run");
+        train_tiny(&run);
+        let trained = load_trained(&run).unwrap();
+        assert!(reaches_below_hips(
+            &trained.scene.avatar,
+            &trained.scene.garment
+        ));
+        let report = compare(&trained, Some("walk"), &quick(), &mut |_| true).unwrap();
+        assert_eq!(report.motions.len(), 1);
+        let m = &report.motions[0];
+        let s = &m.measures;
+        assert_eq!(s.frames, 10);
+        let numbers = [
+            s.all.mean_mm,
+            s.all.p95_mm,
+            s.amplitude.network.all_mm,
+            s.amplitude.simulator.all_mm,
+            m.metrics.network.strain,
+            m.metrics.simulator.strain,
+            m.metrics.network.gravity,
+            m.metrics.simulator.gravity,
+        ];
+        assert!(numbers.iter().all(|v| v.is_finite()), "{report:?}");
+        // Both stay on the body: centimetres apart, not metres.
+        assert!(
+            s.all.mean_mm > 0.0 && s.all.mean_mm < 500.0 && s.all.p95_mm >= s.all.mean_mm,
+            "{s:?}"
+        );
+        let hem = s.hem.expect("a skirt has a hem radius");
+        let pairs = [hem.still, hem.moving];
+        let radii = pairs
+            .iter()
+            .flatten()
+            .flat_map(|p| [p.network_m, p.simulator_m]);
+        assert!(radii.clone().count() > 0);
+        assert!(
+            radii
+                .into_iter()
+                .all(|r| r.is_finite() && r > 0.05 && r < 1.0)
+        );
+        // Without a motion: the validation split (idle), whose frames are all still.
+        let idle = compare(&trained, None, &quick(), &mut |_| true).unwrap();
+        assert_eq!(idle.motions[0].name, "idle");
+        assert_eq!(idle.motions[0].measures.still_frames, 10);
+        assert!(idle.motions[0].measures.moving.is_none());
+        assert!(compare(&trained, Some("nope"), &quick(), &mut |_| true).is_err());
+        // Cancelling stops it.
+        let cancelled = compare(
+            &trained,
+            Some("walk"),
+            &CompareOptions {
+                use_cache: false,
+                ..quick()
+            },
+            &mut |_| false,
+        );
+        assert!(cancelled.is_err());
+    }
+
+    #[test]
+    fn the_simulator_against_itself_is_at_distance_zero() {
+        let config = SceneConfig::from_toml_str(SKIRT).unwrap();
+        let scene = build_builtin(&config).unwrap();
+        let fabric = FabricParams::from_table(&scene.fabric).unwrap();
+        let motion = scene.motions[0].0.resample(30.0).unwrap();
+        let device = device_for(BackendKind::Cpu, false);
+        let sim_options = SimOptions {
+            iterations_per_step: 8,
+            settle_secs: 0.1,
+            ..Default::default()
+        };
+        let run = |effects: &Effects| {
+            simulate(
+                &scene.avatar,
+                &scene.garment,
+                &fabric,
+                effects,
+                &motion,
+                30.0,
+                &sim_options,
+                &device,
+                &mut |_| true,
+            )
+            .unwrap()
+            .frames
+        };
+        let sim = run(&scene.effects);
+        let quiet = run(&Effects {
+            dynamics: false,
+            ..scene.effects
+        });
+        assert_eq!(sim.len(), motion.frames.len());
+        let same = compare_frames(&sim, &sim).unwrap();
+        assert_eq!((same.mean_mm, same.p95_mm, same.frames), (0.0, 0.0, 10));
+        let offset = nalgebra::Vector3::new(0.002f32, 0.0, 0.0);
+        let moved: Vec<Vec<_>> = sim
+            .iter()
+            .map(|f| f.iter().map(|p| p + offset).collect())
+            .collect();
+        let two = compare_frames(&sim, &moved).unwrap();
+        assert!((two.mean_mm - 2.0).abs() < 1e-3, "{two:?}");
+        assert!((two.p95_mm - 2.0).abs() < 1e-3, "{two:?}");
+        // The whole measure with the simulator standing in for the network.
+        let still = still_frames(&scene.avatar, &motion.frames, 30.0, 0.1, 0.5);
+        let measures = measure_motion(
+            &scene.avatar,
+            &scene.garment,
+            &motion.frames,
+            &still,
+            &Sequences {
+                network: &sim,
+                network_static: &quiet,
+                simulator: &sim,
+                simulator_static: &quiet,
+            },
+        )
+        .unwrap();
+        assert_eq!(measures.all.mean_mm, 0.0);
+        assert_eq!(measures.amplitude.network, measures.amplitude.simulator);
+        assert!(measures.amplitude.simulator.all_mm > 0.0);
+        let hem = measures.hem.unwrap();
+        for pair in [hem.still, hem.moving].into_iter().flatten() {
+            assert_eq!(pair.network_m, pair.simulator_m);
+        }
+    }
+
+    #[test]
+    fn the_reference_is_cached_and_a_changed_garment_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = dir.path().join("run");
+        train_tiny(&run);
+        let trained = load_trained(&run).unwrap();
+        let mut simulated = 0;
+        let first = compare(&trained, Some("walk"), &quick(), &mut |p| {
+            simulated +=
+                usize::from(p.phase != ComparePhase::Network && p.phase != ComparePhase::Metrics);
+            true
+        })
+        .unwrap();
+        assert_eq!(simulated, 20, "two simulations of 10 frames");
+        let reference = &first.motions[0].reference;
+        assert!(
+            !reference.cached && reference.path.is_file(),
+            "{reference:?}"
+        );
+        assert!(reference.path.starts_with(reference_dir(&run)));
+        let mut events = Vec::new();
+        let second = compare(&trained, Some("walk"), &quick(), &mut |p| {
+            events.push(p.phase);
+            true
+        })
+        .unwrap();
+        assert!(second.motions[0].reference.cached);
+        assert!(
+            events
+                .iter()
+                .all(|p| matches!(p, ComparePhase::Network | ComparePhase::Metrics)),
+            "{events:?}"
+        );
+        assert_eq!(first.motions[0].measures, second.motions[0].measures);
+        // Other settings simulate again.
+        let other = CompareOptions {
+            iterations: 9,
+            ..quick()
+        };
+        let third = compare(&trained, Some("walk"), &other, &mut |_| true).unwrap();
+        assert!(!third.motions[0].reference.cached);
+        // Swap the garment in the run's scene: refused, naming the garment.
+        let scene_toml = std::fs::read_to_string(run.join("scene.toml")).unwrap();
+        std::fs::write(
+            run.join("scene.toml"),
+            scene_toml.replace("resolution = 200", "resolution = 240"),
+        )
+        .unwrap();
+        let err = load_trained(&run)
+            .err()
+            .expect("a changed garment is refused");
+        let text = err.to_string();
+        assert!(
+            text.contains("garment changed") && text.contains("skirt"),
+            "{text}"
+        );
+        // Same garment, another avatar fingerprint in run.json: refused, naming the avatar.
+        std::fs::write(run.join("scene.toml"), &scene_toml).unwrap();
+        let meta = std::fs::read_to_string(run.join("run.json")).unwrap();
+        let mut meta: serde_json::Value = serde_json::from_str(&meta).unwrap();
+        assert!(meta["avatar_fingerprint"].is_u64(), "{meta}");
+        meta["avatar_fingerprint"] = serde_json::json!(1);
+        std::fs::write(run.join("run.json"), meta.to_string()).unwrap();
+        let text = load_trained(&run).err().expect("refused").to_string();
+        assert!(text.contains("avatar changed"), "{text}");
+    }
+
+    #[test]
+    fn cli_compare_prints_a_table_and_json() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = dir.path().join("run");
+        train_tiny(&run);
+        let args = [
+            "compare",
+            "run",
+            "--motion",
+            "walk",
+            "--iterations",
+            "8",
+            "--settle",
+            "0.1",
+        ];
+        let (ok, log) = super::cli(&args, dir.path());
+        assert!(ok, "{log}");
+        assert!(
+            log.contains("distance mean, mm") && log.contains("hem radius"),
+            "{log}"
+        );
+        println!("{log}");
+        let mut json_args = args.to_vec();
+        json_args.push("--json");
+        let (ok, log) = super::cli(&json_args, dir.path());
+        assert!(ok, "{log}");
+        let start = log.find('{').unwrap();
+        let v: serde_json::Value = serde_json::Deserializer::from_str(&log[start..])
+            .into_iter()
+            .next()
+            .unwrap()
+            .unwrap();
+        assert_eq!(v["motions"][0]["reference"]["cached"], true, "{log}");
+        assert!(
+            v["motions"][0]["all"]["mean_mm"]
+                .as_f64()
+                .unwrap()
+                .is_finite()
+        );
+        let (ok, log) = super::cli(&["compare", "run", "--motion", "nope"], dir.path());
+        assert!(!ok && log.contains("unknown motion 'nope'"), "{log}");
+    }
 }

@@ -1,7 +1,8 @@
 //! The "Cost" panel: what accuracy costs in time for the current scene. It runs the report's
 //! accuracy/time experiment (reference simulator at several iteration budgets against a
 //! network trained for a few durations, all on the current scene) on a background thread
-//! with a budget, shows its progress, can cancel it, and tabulates the result.
+//! with a budget, shows its progress, can cancel it, and tabulates the result. It also holds
+//! "Check against simulation" of the current run ([`super::sim_check`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -25,6 +26,8 @@ pub struct CostPanel {
     job: Option<CostJob>,
     /// The last result, or the error that ended the last run.
     pub result: Option<Result<CostResult, String>>,
+    /// "Check against simulation" of the current run.
+    pub check: super::sim_check::SimCheck,
 }
 
 impl Default for CostPanel {
@@ -33,6 +36,7 @@ impl Default for CostPanel {
             budget_secs: 120.0,
             job: None,
             result: None,
+            check: Default::default(),
         }
     }
 }
@@ -116,8 +120,7 @@ impl super::NeuralClothApp {
         egui::CollapsingHeader::new("Cost").default_open(false).show(ui, |ui| {
             ui.label("What accuracy costs in time on this scene: the reference simulator at several iteration budgets against the network trained for a few durations.");
             ui.horizontal(|ui| {
-                ui.add(egui::Slider::new(&mut self.cost.budget_secs, 30.0..=1800.0).logarithmic(true).suffix(" s"));
-                ui.label("budget");
+                ui.add(egui::Slider::new(&mut self.cost.budget_secs, 30.0..=1800.0).logarithmic(true).suffix(" s").text("budget"));
             });
             if self.cost.is_running() {
                 if let Some(p) = self.cost.progress() {
@@ -143,6 +146,7 @@ impl super::NeuralClothApp {
                 }
                 None => {}
             }
+            self.sim_check_ui(ui);
         });
     }
 }

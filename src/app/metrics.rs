@@ -28,16 +28,19 @@ pub enum Metric {
     Gravity,
     /// Inertia term, joules.
     Inertia,
+    /// Dead ReLU units of the worst layer, percent (validation passes only).
+    DeadUnits,
 }
 
 impl Metric {
     /// All metrics in display order.
-    pub const ALL: [Metric; 5] = [
+    pub const ALL: [Metric; 6] = [
         Metric::Strain,
         Metric::Bending,
         Metric::Collision,
         Metric::Gravity,
         Metric::Inertia,
+        Metric::DeadUnits,
     ];
 
     /// Label with unit, for legends and titles.
@@ -48,6 +51,7 @@ impl Metric {
             Metric::Collision => "collision (%)",
             Metric::Gravity => "gravity (J)",
             Metric::Inertia => "inertia (J)",
+            Metric::DeadUnits => "dead units (%)",
         }
     }
 
@@ -59,6 +63,7 @@ impl Metric {
             Metric::Collision => record.collision_pct,
             Metric::Gravity => record.gravity,
             Metric::Inertia => record.inertia,
+            Metric::DeadUnits => record.dead_units_pct,
         }
     }
 }

@@ -20,6 +20,7 @@ pub mod plot_panel;
 pub mod preview;
 pub mod project;
 pub mod project_io;
+pub mod sim_check;
 pub mod state;
 pub mod timeline;
 pub mod training;

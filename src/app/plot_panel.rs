@@ -8,12 +8,13 @@ use super::metrics::{Metric, Split, XAxis, series};
 use super::training::TrainingState;
 
 /// Colour of each metric's curve, in [`Metric::ALL`] order.
-pub const METRIC_COLORS: [egui::Color32; 5] = [
+pub const METRIC_COLORS: [egui::Color32; 6] = [
     egui::Color32::from_rgb(90, 170, 255),
     egui::Color32::from_rgb(250, 170, 60),
     egui::Color32::from_rgb(240, 90, 90),
     egui::Color32::from_rgb(120, 210, 120),
     egui::Color32::from_rgb(200, 130, 230),
+    egui::Color32::from_rgb(160, 160, 160),
 ];
 
 impl NeuralClothApp {

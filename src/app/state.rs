@@ -113,7 +113,7 @@ pub struct TypedPaths {
 #[derive(Clone, Debug, PartialEq)]
 pub struct CurveSettings {
     /// Metrics shown, in [`Metric::ALL`] order.
-    pub shown: [bool; 5],
+    pub shown: [bool; 6],
     /// Also draw validation curves.
     pub validation: bool,
     /// X axis.
@@ -123,7 +123,7 @@ pub struct CurveSettings {
 impl Default for CurveSettings {
     fn default() -> Self {
         Self {
-            shown: [true, true, true, false, false],
+            shown: [true, true, true, false, false, false],
             validation: true,
             x_axis: XAxis::Step,
         }

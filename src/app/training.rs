@@ -310,6 +310,13 @@ impl TrainingControl {
                 }
             }
             TrainEvent::Applied(what) => self.note(format!("applied: {what}")),
+            TrainEvent::Stalled {
+                step,
+                reason,
+                remedy,
+            } => self.note(format!(
+                "⚠ training stalled at step {step}: {reason}; {remedy}"
+            )),
             TrainEvent::Finished(result) => {
                 let result = result.map(|s| {
                     format!(

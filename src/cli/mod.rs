@@ -4,6 +4,7 @@
 mod app_launcher;
 mod bake;
 mod bench;
+mod compare;
 mod inspect;
 mod report;
 mod screenshot;
@@ -41,6 +42,8 @@ pub enum Command {
     Bake(bake::BakeArgs),
     /// Bake a motion with the reference simulator (the paper's Eq. 8 baseline).
     Simulate(bake::SimulateArgs),
+    /// Check a trained run against the reference simulator on the same motion.
+    Compare(compare::CompareArgs),
     /// Measure inference fps (10K/250K DoF), the bandwidth floor, training and physics costs.
     Bench(bench::BenchArgs),
     /// Measure what accuracy costs in time and reproduce the paper's claims; writes docs/REPORT.md.
@@ -73,6 +76,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Eval(args)) => train::eval(args),
         Some(Command::Bake(args)) => bake::run(args),
         Some(Command::Simulate(args)) => bake::simulate(args),
+        Some(Command::Compare(args)) => compare::run(args),
         Some(Command::Bench(args)) => bench::run(args),
         Some(Command::Report(args)) => report::run(args),
         Some(Command::Screenshot(args)) => screenshot::run(args),

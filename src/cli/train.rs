@@ -54,6 +54,33 @@ pub struct TrainArgs {
     /// Random seed.
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Adam learning rate (default 1e-3).
+    #[arg(long)]
+    pub learning_rate: Option<f64>,
+    /// Learning-rate factor of the decoder basis, in (0, 1] (default 1/512; 1 = the official
+    /// code's single rate, which kills flared garments: see docs/TRAINING.md).
+    #[arg(long)]
+    pub basis_lr_scale: Option<f64>,
+    /// Gain of the basis initialisation (default 1 = glorot-normal).
+    #[arg(long)]
+    pub basis_init_gain: Option<f64>,
+    /// Seconds the simulator drapes the garment on the rest pose before training (warm
+    /// start; 0 = off, default 1.5).
+    #[arg(long)]
+    pub predrape_secs: Option<f32>,
+    /// Train the basis without its learned mean offset (the official code's bias-free basis;
+    /// also turns the warm start off).
+    #[arg(long)]
+    pub no_basis_bias: bool,
+    /// Keep zero initial biases (no data-dependent centring of the layers).
+    #[arg(long)]
+    pub no_centre_init: bool,
+    /// Fraction of each batch made of still windows (default 0 = the paper's batches).
+    #[arg(long)]
+    pub still_fraction: Option<f32>,
+    /// Dead units (percent of a layer) that trigger the revive remedy (default 75).
+    #[arg(long)]
+    pub dead_limit: Option<f64>,
 }
 
 /// The backend choice on the command line.
@@ -179,6 +206,28 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     if let Some(s) = args.seed {
         train.seed = s;
     }
+    if let Some(lr) = args.learning_rate {
+        train.learning_rate = lr;
+    }
+    let mut model = ClothNetConfig::default();
+    if let Some(s) = args.basis_lr_scale {
+        model.basis_lr_scale = s;
+    }
+    if let Some(g) = args.basis_init_gain {
+        model.basis_init_gain = g;
+    }
+    if let Some(p) = args.predrape_secs {
+        train.predrape_secs = p;
+    }
+    model.basis_bias = !args.no_basis_bias;
+    train.centre_init = !args.no_centre_init;
+    if let Some(f) = args.still_fraction {
+        train.still_fraction = f;
+    }
+    if let Some(d) = args.dead_limit {
+        train.dead_limit_pct = d;
+    }
+    model.validate()?;
     train.max_steps = args.steps;
     train.max_minutes = args.minutes;
     if train.max_steps.is_none() && train.max_minutes.is_none() {
@@ -194,7 +243,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         scene,
         scene_config,
         train: train.clone(),
-        model: ClothNetConfig::default(),
+        model,
         descriptors: DescriptorConfig::default(),
         fabric: None,
         location,
@@ -208,6 +257,14 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    // Without a terminal the bar is hidden and so are its lines: log them to stderr instead.
+    let say = |line: String| {
+        if bar.is_hidden() {
+            eprintln!("{line}");
+        } else {
+            bar.println(line);
+        }
+    };
     let by_steps = train.max_steps.is_some();
     let mut steps_per_sec = 0.0;
     let mut last = (0u64, 0.0f64);
@@ -217,7 +274,10 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
             continue;
         };
         match event {
-            TrainEvent::Started { run_dir, step } => bar.println(format!("run folder: {} (from step {step})", run_dir.display())),
+            TrainEvent::Started { run_dir, step } => say(format!(
+                "run folder: {} (from step {step})",
+                run_dir.display()
+            )),
             TrainEvent::Step(r) => {
                 if r.wall_secs > last.1 + 1.0 {
                     steps_per_sec = (r.step - last.0) as f64 / (r.wall_secs - last.1);
@@ -229,14 +289,36 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
                     r.step, steps_per_sec, r.loss, r.strain, r.bending, r.collision_pct, r.gravity, r.inertia
                 ));
             }
-            TrainEvent::Validation(r) => bar.println(format!(
-                "validation @ {}: loss {:.4} strain {:.4} bending {:.3} collision {:.2}% gravity {:.4} inertia {:.5}",
-                r.step, r.loss, r.strain, r.bending, r.collision_pct, r.gravity, r.inertia
+            TrainEvent::Validation(r) => say(format!(
+                "validation @ {}: loss {:.4} strain {:.4} bending {:.3} collision {:.2}% gravity {:.4} inertia {:.5} dead units {:.0}%",
+                r.step,
+                r.loss,
+                r.strain,
+                r.bending,
+                r.collision_pct,
+                r.gravity,
+                r.inertia,
+                r.dead_units_pct
             )),
-            TrainEvent::RolledBack { diverged_at, restored_step, learning_rate } => {
-                bar.println(format!("diverged at step {diverged_at}: rolled back to step {restored_step}, learning rate now {learning_rate:e}"))
-            }
-            TrainEvent::Checkpoint { .. } | TrainEvent::Snapshot { .. } | TrainEvent::Paused | TrainEvent::Resumed | TrainEvent::Applied(_) => {}
+            TrainEvent::Stalled {
+                step,
+                reason,
+                remedy,
+            } => say(format!(
+                "warning: training stalled at step {step}: {reason}; {remedy}"
+            )),
+            TrainEvent::RolledBack {
+                diverged_at,
+                restored_step,
+                learning_rate,
+            } => say(format!(
+                "diverged at step {diverged_at}: rolled back to step {restored_step}, learning rate now {learning_rate:e}"
+            )),
+            TrainEvent::Checkpoint { .. }
+            | TrainEvent::Snapshot { .. }
+            | TrainEvent::Paused
+            | TrainEvent::Resumed
+            | TrainEvent::Applied(_) => {}
             TrainEvent::Finished(result) => {
                 bar.finish_and_clear();
                 let summary = result.map_err(|e| anyhow::anyhow!(e))?;
@@ -278,5 +360,13 @@ pub fn eval(args: EvalArgs) -> anyhow::Result<()> {
     let trained = neural_cloth::train::load_trained(&args.checkpoint)?;
     let report = neural_cloth::train::evaluate(&trained, split, args.w)?;
     println!("{}", serde_json::to_string_pretty(&report)?);
+    // The official code's definitions, beside ours (on stderr: stdout stays pure JSON).
+    eprintln!(
+        "bending (paper): {:.4} rad (ours {:.4})\nstretch (paper): {:.4} (ours: strain {:.4})",
+        report.mean.paper_bending,
+        report.mean.bending,
+        report.mean.paper_stretch,
+        report.mean.strain
+    );
     Ok(())
 }

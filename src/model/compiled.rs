@@ -82,8 +82,10 @@ pub struct CompiledNet {
     pub recurrent: Option<RecurrentLayers>,
     /// Decoder MLP, ReLU after each layer.
     pub decoder_layers: Vec<Dense>,
-    /// Linear basis `[decoder width, V * 3]`, no bias.
+    /// Linear basis `[decoder width, V * 3]`.
     pub basis: Matrix,
+    /// Per-value bias of the basis `[V * 3]` (the learned mean offset), when the network has one.
+    pub basis_bias: Option<Vec<f32>>,
 }
 
 fn dense_all(layers: Vec<DenseWeights>, precision: Precision) -> Vec<Dense> {
@@ -116,6 +118,7 @@ impl CompiledNet {
                 weights.basis.weight,
                 basis,
             ),
+            basis_bias: weights.basis.bias,
         }
     }
 

@@ -326,6 +326,29 @@ impl Descriptors {
     }
 }
 
+impl Descriptors {
+    /// Appends a still window: frame `frame` held for `len` frames (its static descriptors,
+    /// zero dynamics), as if the body had stood in that pose for the whole window.
+    pub fn append_still(
+        &self,
+        frame: usize,
+        len: usize,
+        static_out: &mut Vec<f32>,
+        dynamic_out: &mut Vec<f32>,
+    ) {
+        if self.frames == 0 {
+            return;
+        }
+        let frame = frame.min(self.frames - 1);
+        for _ in 0..len {
+            if let Some(s) = self.static_frame(frame) {
+                static_out.extend_from_slice(s);
+            }
+            dynamic_out.extend(std::iter::repeat_n(0.0, self.joints * DYNAMIC_DIM));
+        }
+    }
+}
+
 /// Descriptors of whole sequences at a fixed frame rate (the training rate).
 #[derive(Clone, Debug)]
 pub struct DescriptorExtractor {

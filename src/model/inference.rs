@@ -467,6 +467,7 @@ impl InferenceEngine {
         let chunk = GarmentChunk {
             basis: &self.net.basis,
             h: &b.h,
+            bias: self.net.basis_bias.as_deref(),
             template: &self.template,
             skin: &self.garment_skin,
             mats: &b.garment_mats,

@@ -291,6 +291,8 @@ pub struct GarmentChunk<'a> {
     pub basis: &'a Matrix,
     /// Basis coefficients (decoder output).
     pub h: &'a [f32],
+    /// Bias of the basis `[V * 3]`, if any.
+    pub bias: Option<&'a [f32]>,
     /// Template `[V * 3]`, rest space.
     pub template: &'a [f32],
     /// Garment skin weights.
@@ -304,7 +306,13 @@ impl GarmentChunk<'_> {
     /// `posed` holds; `offsets` and `rest` hold three values per vertex).
     pub fn run(&self, v0: usize, offsets: &mut [f32], rest: &mut [f32], posed: &mut [Vec3]) {
         let n = posed.len();
-        offsets.fill(0.0);
+        match self
+            .bias
+            .and_then(|b| b.get(3 * v0..3 * v0 + offsets.len()))
+        {
+            Some(bias) => offsets.copy_from_slice(bias),
+            None => offsets.fill(0.0),
+        }
         self.basis.accumulate(self.h, 3 * v0, offsets);
         let template = self.template.get(3 * v0..3 * (v0 + n)).unwrap_or(&[]);
         for ((r, t), o) in rest.iter_mut().zip(template).zip(offsets.iter()) {

@@ -9,6 +9,7 @@
 //! [`inference::InferenceEngine`] runs it on raw poses with the GRU state carried over, on its
 //! own [`compiled::CompiledNet`] copy (f32 or f16 storage, SIMD [`kernels`]).
 
+pub mod activity;
 pub mod compiled;
 pub mod descriptors;
 pub mod gru;

@@ -66,7 +66,29 @@ pub struct ClothNetConfig {
     /// Gain of the glorot-normal basis initialisation (std = gain * sqrt(2 / (latent * (V + 3))),
     /// Keras fans of a `[latent, V, 3]` kernel); >= 0, default 1.
     pub basis_init_gain: f64,
+    /// Learning-rate factor of the basis, in (0, 1]; default 1/512 (runs saved before it
+    /// existed read 1). The basis is stored as `B̂` with `B = s·B̂`, which under Adam moves
+    /// `B` `s` times slower than the other weights while its effective initialisation stays
+    /// the glorot one above. Without it one Adam step moves a vertex by up to
+    /// `lr·Σ_k h_k` (hundreds of mm with 512 active units): the offsets overshoot, every
+    /// basis row learns the same correction, and the next overshoot pushes all decoder units
+    /// below zero at once (the dead skirt of issue 11). See docs/TRAINING.md.
+    #[serde(default = "unit_scale")]
+    pub basis_lr_scale: f64,
+    /// Give the basis a learned per-vertex bias: the mean offset over all poses, which a
+    /// warm start sets to a simulated drape (see `TrainConfig::predrape_secs`). It learns at
+    /// the plain rate (about 1 mm per step per coordinate under Adam) and, unlike the decoder
+    /// units, cannot die. Default true (runs saved before it existed read false).
+    #[serde(default)]
+    pub basis_bias: bool,
 }
+
+fn unit_scale() -> f64 {
+    1.0
+}
+
+/// Default [`ClothNetConfig::basis_lr_scale`]: one over the default decoder width.
+pub const DEFAULT_BASIS_LR_SCALE: f64 = 1.0 / 512.0;
 
 impl Default for ClothNetConfig {
     fn default() -> Self {
@@ -79,6 +101,8 @@ impl Default for ClothNetConfig {
             decoder_hidden: vec![512, 512, 512],
             init_std: 0.05,
             basis_init_gain: 1.0,
+            basis_lr_scale: DEFAULT_BASIS_LR_SCALE,
+            basis_bias: true,
         }
     }
 }
@@ -110,6 +134,15 @@ impl ClothNetConfig {
             return Err(ModelError::InvalidConfig(format!(
                 "init_std {} is not positive",
                 self.init_std
+            )));
+        }
+        if !(self.basis_lr_scale.is_finite()
+            && self.basis_lr_scale > 0.0
+            && self.basis_lr_scale <= 1.0)
+        {
+            return Err(ModelError::InvalidConfig(format!(
+                "basis_lr_scale {} is outside (0, 1]",
+                self.basis_lr_scale
             )));
         }
         if !(self.basis_init_gain.is_finite() && self.basis_init_gain >= 0.0) {
@@ -180,8 +213,10 @@ impl ClothNetConfig {
         let decoder_mlp = mlp(self.latent, &self.decoder_hidden, true);
         let basis_in = self.decoder_hidden.last().copied().unwrap_or(self.latent);
         // Keras glorot_normal on a [basis_in, V, 3] kernel: fan_in = basis_in * V, fan_out = basis_in * 3.
-        let basis_std =
-            self.basis_init_gain * (2.0 / (basis_in as f64 * (vertices as f64 + 3.0))).sqrt();
+        // Stored as B̂ = B / s: the effective basis B starts glorot-normal whatever s is.
+        let basis_std = self.basis_init_gain
+            * (2.0 / (basis_in as f64 * (vertices as f64 + 3.0))).sqrt()
+            / self.basis_lr_scale;
         let basis = Linear {
             weight: Initializer::Normal {
                 mean: 0.0,
@@ -193,7 +228,14 @@ impl ClothNetConfig {
                 Some(vertices * 3),
                 device,
             ),
-            bias: None,
+            bias: self.basis_bias.then(|| {
+                Initializer::Zeros.init_with(
+                    [vertices * 3],
+                    Some(basis_in),
+                    Some(vertices * 3),
+                    device,
+                )
+            }),
         };
         Ok(ClothNet {
             static_encoder,
@@ -202,6 +244,7 @@ impl ClothNetConfig {
             decoder: Decoder {
                 mlp: decoder_mlp,
                 basis,
+                basis_scale: self.basis_lr_scale,
             },
             input_joints,
             vertices,
@@ -258,8 +301,17 @@ impl RecurrentEncoder {
 pub struct Decoder {
     /// FC layers with bias and ReLU.
     pub mlp: Mlp,
-    /// Bias-free basis `[latent, V * 3]`.
+    /// Bias-free basis `[latent, V * 3]`, stored divided by `basis_scale`.
     pub basis: Linear,
+    /// The effective basis is `basis_scale · basis` ([`ClothNetConfig::basis_lr_scale`]).
+    pub basis_scale: f64,
+}
+
+impl Decoder {
+    /// The effective basis weight `[latent, V * 3]` (`basis_scale · B̂`).
+    pub fn basis_weight(&self) -> Tensor<2> {
+        self.basis.weight.val().mul_scalar(self.basis_scale)
+    }
 }
 
 /// The cloth network: descriptors -> latent code -> rest-space garment offsets.
@@ -342,7 +394,11 @@ impl ClothNet {
     /// Rest-space offsets `[B, T, V, 3]` of latent codes `[B, T, latent]`.
     pub fn decode(&self, z: Tensor<3>) -> Tensor<4> {
         let [b, t, _] = z.dims();
-        let h = self.decoder.mlp.forward(z);
+        let h = self
+            .decoder
+            .mlp
+            .forward(z)
+            .mul_scalar(self.decoder.basis_scale);
         self.decoder
             .basis
             .forward(h)
@@ -479,7 +535,7 @@ mod tests {
                 .all(|l| l.bias.is_none())
         );
         assert!(dynamic.gru.update_gate.input_transform.bias.is_none());
-        assert!(net.decoder.basis.bias.is_none());
+        assert!(net.decoder.basis.bias.is_some());
         assert!(
             net.static_encoder
                 .as_ref()

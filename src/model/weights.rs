@@ -355,7 +355,7 @@ impl InferenceWeights {
             static_layers,
             recurrent,
             decoder_layers: dense_layers(&model.decoder.mlp, "decoder")?,
-            basis: DenseWeights::from_linear(&model.decoder.basis, "basis")?,
+            basis: effective_basis(&model.decoder)?,
         };
         out.validate()?;
         Ok(out)
@@ -431,9 +431,9 @@ impl InferenceWeights {
         if self.basis.d_in != d {
             return mismatch("basis input width", d, self.basis.d_in);
         }
-        if self.basis.d_out != self.vertices * 3 || self.basis.bias.is_some() {
+        if self.basis.d_out != self.vertices * 3 {
             return mismatch(
-                "basis outputs (3 per vertex, no bias)",
+                "basis outputs (3 per vertex)",
                 self.vertices * 3,
                 self.basis.d_out,
             );
@@ -479,6 +479,16 @@ impl InferenceWeights {
         }
         w
     }
+}
+
+/// The decoder's effective basis (`basis_scale · B̂`, see [`crate::model::ClothNetConfig`]).
+fn effective_basis(decoder: &crate::model::network::Decoder) -> Result<DenseWeights, ModelError> {
+    let mut basis = DenseWeights::from_linear(&decoder.basis, "basis")?;
+    let scale = decoder.basis_scale as f32;
+    if scale != 1.0 {
+        basis.weight.iter_mut().for_each(|v| *v *= scale);
+    }
+    Ok(basis)
 }
 
 #[cfg(test)]

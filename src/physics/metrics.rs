@@ -4,6 +4,9 @@
 //!
 //! They are pure functions of meshes: [`PhysicsTerms::metrics`] takes a `[B, V, 3]` batch (e.g.
 //! network output) and [`sequence_metrics`] any sequence of garment frames.
+//!
+//! Beside our own bending and stretch, [`ClothMetrics`] carries the official code's definitions
+//! of both (`paper_bending_rad`, `paper_stretch`, computed by [`super::paper_metrics`]).
 
 use std::sync::Arc;
 
@@ -13,7 +16,8 @@ use crate::geometry::Vec3;
 
 use super::collision::{self, BodyBatch, Contacts, PosedBody};
 use super::energies;
-use super::tensors::{per_sample, positions_tensor, read_f64};
+use super::paper_metrics;
+use super::tensors::{per_sample, positions_tensor, read_f32, read_f64};
 use super::{PhysicsError, PhysicsTerms};
 
 /// Batch-averaged metrics. Lower is not always better (see paper §4.2): only strain and
@@ -40,6 +44,17 @@ pub struct ClothMetrics {
     pub inertia_j: Option<f64>,
     /// Mass-weighted mean distance `|x - x̃|`, metres, when two previous frames were given.
     pub inertia_m: Option<f64>,
+    /// Bending as the official code defines it: plain mean over every pair of faces sharing an
+    /// edge of `|θ - θ̄|`, `θ = atan2(|n0 × n1|, n0 · n1)` the *unsigned* angle between the
+    /// two face normals, radians (see [`super::paper_metrics`]).
+    #[serde(default)]
+    pub paper_bending_rad: f64,
+    /// Baraff-Witkin stretch as the official code defines it: `Σ_f |c_f| (|s_u| + |s_v|) /
+    /// Σ_f |c_f|`, `s = |w| - 1` on rest frames obtained by rotating each rest normal onto
+    /// `+Z` (the *sum* of the two directions, so ≈ 2 × [`Self::stretch`]), unitless (see
+    /// [`super::paper_metrics`]).
+    #[serde(default)]
+    pub paper_stretch: f64,
 }
 
 /// Two previous frames and the time step, for the inertia metric.
@@ -115,6 +130,9 @@ impl PhysicsTerms {
                 m.collision_pct = Some(100.0 * mean(frac)?);
             }
         }
+        let paper = paper_metrics::paper_metrics(rest, &read_f32(x.clone())?, b)?;
+        m.paper_bending_rad = paper.bending_rad;
+        m.paper_stretch = paper.stretch;
         m.gravity_j = mean(energies::gravity(&x, rt))?;
         if let Some(h) = history.filter(|h| h.x_t1.dims() == x.dims() && h.x_t2.dims() == x.dims())
         {
@@ -188,4 +206,135 @@ pub fn sequence_metrics(
         }
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use burn::tensor::{DType, Device};
+
+    use super::*;
+    use crate::geometry::{Topology, TriMesh};
+    use crate::physics::{Effects, FabricParams, GarmentRest};
+
+    /// A 5 x 4 sheet, tilted (normal not along an axis), its rest positions optionally bent.
+    fn sheet_terms(corrugate: f32) -> (TriMesh, PhysicsTerms) {
+        let mut mesh = crate::physics::shapes::sheet(
+            5,
+            4,
+            Vec3::new(0.1, 0.9, -0.2),
+            Vec3::new(0.4, 0.1, 0.05),
+            Vec3::new(-0.05, 0.1, 0.3),
+        );
+        let n = Vec3::new(0.4, 0.1, 0.05)
+            .cross(&Vec3::new(-0.05, 0.1, 0.3))
+            .normalize();
+        for (k, p) in mesh.positions.iter_mut().enumerate() {
+            // Alternating bumps: hinges bent both ways at rest.
+            *p += n * (corrugate * if k % 2 == 0 { 1.0 } else { -1.0 });
+        }
+        let topology = Topology::new(&mesh);
+        let rest = GarmentRest::new(&mesh, &topology, &[], &[], 0.15).unwrap();
+        let effects = Effects {
+            gravity: true,
+            bending: true,
+            collision: false,
+            dynamics: false,
+            pinning: false,
+        };
+        let terms = PhysicsTerms::from_rest(
+            Arc::new(rest),
+            &FabricParams::default(),
+            &effects,
+            &Device::flex(),
+            DType::F32,
+        )
+        .unwrap();
+        (mesh, terms)
+    }
+
+    /// Deterministic pseudo-random displacements in `[-amp, amp]`.
+    fn jitter(positions: &[Vec3], amp: f32, seed: u64) -> Vec<Vec3> {
+        let mut s = seed;
+        let mut next = move || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((s >> 33) as f32 / (1u64 << 31) as f32) * 2.0 - 1.0
+        };
+        positions
+            .iter()
+            .map(|p| p + Vec3::new(next(), next(), next()) * amp)
+            .collect()
+    }
+
+    fn metrics_of(terms: &PhysicsTerms, frames: &[Vec<Vec3>]) -> ClothMetrics {
+        let refs: Vec<&[Vec3]> = frames.iter().map(|f| f.as_slice()).collect();
+        let x = positions_tensor(&refs, terms.device(), terms.dtype()).unwrap();
+        terms.metrics(&x, None, None).unwrap()
+    }
+
+    #[test]
+    fn paper_metrics_beside_ours_on_random_meshes() {
+        // Flat rest: every rest angle is 0, so unsigned = |signed| and the two bendings agree
+        // (every hinge is usable and ours is unweighted too).
+        let (mesh, terms) = sheet_terms(0.0);
+        let rest = terms.rest();
+        assert_eq!(
+            rest.hinge_weight.iter().filter(|w| **w > 0.0).count(),
+            rest.hinges.len()
+        );
+        let at_rest = metrics_of(&terms, std::slice::from_ref(&mesh.positions));
+        assert!(at_rest.paper_bending_rad < 1e-6 && at_rest.paper_stretch < 1e-6);
+        let frames: Vec<Vec<Vec3>> = (0..3).map(|s| jitter(&mesh.positions, 0.02, s)).collect();
+        let m = metrics_of(&terms, &frames);
+        assert!(m.bending_rad > 0.05, "{m:?}");
+        assert!((m.paper_bending_rad - m.bending_rad).abs() < 1e-4, "{m:?}");
+        // Batch mean = mean of the per-frame values.
+        let per: Vec<ClothMetrics> = frames
+            .iter()
+            .map(|f| metrics_of(&terms, std::slice::from_ref(f)))
+            .collect();
+        let mean = |g: fn(&ClothMetrics) -> f64| per.iter().map(g).sum::<f64>() / 3.0;
+        assert!((m.paper_bending_rad - mean(|m| m.paper_bending_rad)).abs() < 1e-9);
+        assert!((m.paper_stretch - mean(|m| m.paper_stretch)).abs() < 1e-9);
+        // Uniform 10 % scaling: frames do not matter; ours averages u and v (0.1), the
+        // official sums them (0.2).
+        let scaled: Vec<Vec3> = mesh.positions.iter().map(|p| p * 1.1).collect();
+        let m = metrics_of(&terms, &[scaled]);
+        assert!((m.stretch - 0.1).abs() < 1e-5, "{m:?}");
+        assert!((m.paper_stretch - 0.2).abs() < 1e-5, "{m:?}");
+        // A random deformation: different rest frames (ours projects +Y, the official rotates
+        // the normal onto +Z), so the official stretch is not twice ours.
+        let m = metrics_of(&terms, &frames[..1]);
+        assert!(m.stretch > 0.01, "{m:?}");
+        assert!((m.paper_stretch - 2.0 * m.stretch).abs() > 1e-3, "{m:?}");
+
+        // Bent rest with hinges of both signs, mirrored: signed changes are large, unsigned
+        // ones vanish, so ours is large and the official is ~0.
+        let (mesh, terms) = sheet_terms(0.02);
+        let flat_terms = sheet_terms(0.0).1;
+        let rest0 = flat_terms.rest().rest_positions.clone();
+        let mirrored: Vec<Vec3> = mesh
+            .positions
+            .iter()
+            .zip(&rest0)
+            .map(|(p, q)| q * 2.0 - p)
+            .collect();
+        let m = metrics_of(&terms, std::slice::from_ref(&mirrored));
+        assert!(m.bending_rad > 0.1, "{m:?}");
+        assert!(m.paper_bending_rad < 1e-4, "{m:?}");
+        // In general the unsigned error never exceeds the signed one; they agree on hinges
+        // that keep their sign (the jittered rest) and differ on those that flip.
+        for (base, flips) in [(&mesh.positions, false), (&mirrored, true)] {
+            let frames: Vec<Vec<Vec3>> = (0..3).map(|s| jitter(base, 0.005, 10 + s)).collect();
+            let m = metrics_of(&terms, &frames);
+            assert!(m.paper_bending_rad <= m.bending_rad + 1e-6, "{m:?}");
+            match flips {
+                false => assert!(m.paper_bending_rad > 0.9 * m.bending_rad, "{m:?}"),
+                true => assert!(m.paper_bending_rad < 0.5 * m.bending_rad, "{m:?}"),
+            }
+        }
+    }
 }

@@ -36,6 +36,7 @@ pub mod energies;
 pub mod fabric;
 pub mod lbfgs;
 pub mod metrics;
+pub mod paper_metrics;
 pub mod rest;
 pub mod shapes;
 pub mod simulator;

@@ -27,6 +27,7 @@ use crate::scene::config::{
 };
 use crate::scene::procedural::{GarmentKind, MotionKind, build_builtin};
 use crate::scene::{Pose, Scene};
+use crate::train::compare::{hem_radius_m, hem_vertices};
 use crate::train::{BackendKind, InertiaMode, MetricRecord, TrainConfig, device_for};
 
 use super::runs::{
@@ -184,37 +185,6 @@ pub fn fidelity_scene(
         training_fps: 30.0,
     };
     Ok((build_builtin(&config)?, config))
-}
-
-/// Mean horizontal distance of the `hem` vertices from the root joint's vertical axis, metres.
-fn hem_radius(scene: &Scene, pose: &Pose, garment: &[Vec3], hem: &[usize]) -> f32 {
-    let world = scene.avatar.skeleton.world_from_joint(pose);
-    let Some(root) = world.first() else {
-        return 0.0;
-    };
-    let (cx, cz) = (root[(0, 3)], root[(2, 3)]);
-    let sum: f32 = hem
-        .iter()
-        .filter_map(|&i| garment.get(i))
-        .map(|p| ((p.x - cx).powi(2) + (p.z - cz).powi(2)).sqrt())
-        .sum();
-    sum / hem.len().max(1) as f32
-}
-
-/// Vertices in the lowest 15% of the template's height.
-fn hem_vertices(scene: &Scene) -> Vec<usize> {
-    let ys: Vec<f32> = scene.garment.mesh.positions.iter().map(|p| p.y).collect();
-    let (lo, hi) = ys
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &y| {
-            (a.min(y), b.max(y))
-        });
-    let cut = lo + 0.15 * (hi - lo);
-    ys.iter()
-        .enumerate()
-        .filter(|(_, y)| **y <= cut)
-        .map(|(i, _)| i)
-        .collect()
 }
 
 /// Mean of `values` at `times` inside `window`; `None` when no frame falls inside.
@@ -544,11 +514,11 @@ fn skirt_spin(
     let frames = (spin.duration_secs() * fps).floor() as usize + 1;
     let poses = poses_at(spin, fps, frames);
     let times: Vec<f32> = (0..frames).map(|k| k as f32 / fps).collect();
-    let hem = hem_vertices(scene);
+    let hem = hem_vertices(&scene.garment);
     let radii = |xs: &[Vec<Vec3>]| -> Vec<f32> {
         xs.iter()
             .zip(&poses)
-            .map(|(x, p)| hem_radius(scene, p, x, &hem))
+            .map(|(x, p)| hem_radius_m(&scene.avatar, p, x, &hem))
             .collect()
     };
     let mut engine = engine_for(&ours.weights, scene, fps)?;

@@ -57,6 +57,22 @@ pub struct TrainConfig {
     pub backend: BackendKind,
     /// Seed of every random choice (initialisation, sampling); default 0.
     pub seed: u64,
+    /// Warm start: seconds the reference simulator lets the garment settle on the rest pose
+    /// before training; the basis bias starts at that drape (see [`super::warm_start`]).
+    /// 0 = start from the template; 0..=10, default 1.5.
+    pub predrape_secs: f32,
+    /// Data-dependent initialisation: centre every biased layer's pre-activations on the
+    /// training poses before the first step, so that no unit starts dead for every pose
+    /// ([`crate::model::activity::centre_biases`]). Default true.
+    pub centre_init: bool,
+    /// Fraction of each batch made of still windows (a training pose held for the whole
+    /// window: static losses, zero dynamics), teaching the static branch the quasi-static drape
+    /// of every pose; 0..=0.9 (with `augmentation_fraction`, at most 0.95), default 0 (measured:
+    /// 0.25 silenced the dynamic branch of the skirt, docs/TRAINING.md).
+    pub still_fraction: f32,
+    /// A validation pass with at least this percentage of dead units in one layer of the
+    /// static path triggers the stall remedy (revive the dead units); 1..=100, default 75.
+    pub dead_limit_pct: f64,
 }
 
 impl Default for TrainConfig {
@@ -76,6 +92,10 @@ impl Default for TrainConfig {
             inertia_mode: InertiaMode::Ours,
             backend: BackendKind::Cpu,
             seed: 0,
+            predrape_secs: 1.5,
+            centre_init: true,
+            still_fraction: 0.0,
+            dead_limit_pct: 75.0,
         }
     }
 }
@@ -168,6 +188,25 @@ impl TrainConfig {
             "augmentation_fraction",
             self.augmentation_fraction,
             "0..=0.9",
+        )?;
+        check(
+            (0.0..=10.0).contains(&self.predrape_secs),
+            "predrape_secs",
+            self.predrape_secs,
+            "0..=10 s",
+        )?;
+        check(
+            (0.0..=0.9).contains(&self.still_fraction)
+                && self.still_fraction + self.augmentation_fraction <= 0.95,
+            "still_fraction",
+            self.still_fraction,
+            "0..=0.9, with augmentation_fraction at most 0.95",
+        )?;
+        check(
+            (1.0..=100.0).contains(&self.dead_limit_pct),
+            "dead_limit_pct",
+            self.dead_limit_pct,
+            "1..=100 %",
         )?;
         if let Some(m) = self.max_minutes {
             check(m.is_finite() && m > 0.0, "max_minutes", m, "> 0")?;

@@ -167,6 +167,21 @@ impl Dataset {
     /// Assembles the windows of `frames` frames ending at each `(motion, last)`, blending the
     /// garment's skinning matrices per vertex with `skin` (in parallel).
     pub fn batch(&self, windows: &[(usize, usize)], frames: usize, skin: &SkinWeights) -> Batch {
+        self.batch_with_still(windows, 0, frames, skin)
+    }
+
+    /// Like [`Self::batch`], but the first `still` windows are still windows: the pose of their
+    /// last frame held for the whole window (zero dynamic descriptors, the same skinning for
+    /// the three predicted frames). They teach the static branch the quasi-static drape of
+    /// every training pose, which moving windows alone never show (a spin holds one pose
+    /// while turning: its static code would otherwise learn the mean flared shape).
+    pub fn batch_with_still(
+        &self,
+        windows: &[(usize, usize)],
+        still: usize,
+        frames: usize,
+        skin: &SkinWeights,
+    ) -> Batch {
         use rayon::prelude::*;
         let j_all = self.skeleton_joints;
         let v = skin.len();
@@ -177,13 +192,20 @@ impl Dataset {
             ..Default::default()
         };
         let mut blocks: Vec<&[f32]> = Vec::with_capacity(windows.len() * 3);
-        for &(mi, last) in windows {
+        for (k, &(mi, last)) in windows.iter().enumerate() {
             let Some(m) = self.motions.get(mi) else {
                 continue;
             };
-            m.descriptors
-                .append_window(last, frames, &mut b.static_desc, &mut b.dynamic_desc);
+            let is_still = k < still;
+            if is_still {
+                m.descriptors
+                    .append_still(last, frames, &mut b.static_desc, &mut b.dynamic_desc);
+            } else {
+                m.descriptors
+                    .append_window(last, frames, &mut b.static_desc, &mut b.dynamic_desc);
+            }
             for back in (0..3).rev() {
+                let back = if is_still { 0 } else { back };
                 let f = last.saturating_sub(back).min(m.frames().saturating_sub(1));
                 let start = f * j_all * MAT;
                 if let Some(block) = m.matrices.get(start..start + j_all * MAT) {

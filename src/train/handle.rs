@@ -75,6 +75,15 @@ pub enum TrainEvent {
         /// New learning rate.
         learning_rate: f64,
     },
+    /// Training stopped learning (dead units, or validation frozen); the remedy was applied.
+    Stalled {
+        /// Step of the validation pass that detected it.
+        step: u64,
+        /// What was detected, in words.
+        reason: String,
+        /// What was done about it, in words.
+        remedy: String,
+    },
     /// Training paused.
     Paused,
     /// Training resumed.
@@ -124,6 +133,46 @@ pub trait Session: Send {
     fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), String>;
     /// Applies a new window length in seconds.
     fn set_window(&mut self, window_secs: f32) -> Result<(), String>;
+    /// Per-layer dead units of the last validation pass, in words (`None` when not measured).
+    fn activity_summary(&self) -> Option<String> {
+        None
+    }
+    /// Re-initialises dead units without changing the network's output; returns how many.
+    fn revive_dead_units(&mut self) -> Result<usize, String> {
+        Ok(0)
+    }
+}
+
+/// Validation passes whose loss must be bit-identical before a run counts as frozen.
+pub const FROZEN_PASSES: usize = 3;
+
+/// Why the newest validation pass of `validation` shows a run that stopped learning, if it
+/// does: a layer on the static path with at least `dead_limit_pct` % dead units, or the last
+/// [`FROZEN_PASSES`] passes (all after step `since`) with bit-identical losses.
+pub fn stall_reason(
+    validation: &[MetricRecord],
+    dead_limit_pct: f64,
+    since: u64,
+) -> Option<String> {
+    let last = validation.last()?;
+    if last.dead_units_pct >= dead_limit_pct {
+        return Some(format!(
+            "{:.0} % of the units of a layer are dead (limit {dead_limit_pct:.0} %)",
+            last.dead_units_pct
+        ));
+    }
+    let tail: Vec<&MetricRecord> = validation
+        .iter()
+        .rev()
+        .take(FROZEN_PASSES)
+        .filter(|r| r.step > since)
+        .collect();
+    (tail.len() == FROZEN_PASSES && tail.iter().all(|r| r.loss == last.loss)).then(|| {
+        format!(
+            "validation unchanged over {FROZEN_PASSES} passes (loss {})",
+            last.loss
+        )
+    })
 }
 
 /// Limits and cadence of the loop.
@@ -147,6 +196,9 @@ pub struct LoopConfig {
     pub checkpoint_every: u64,
     /// Give up after this many rollbacks.
     pub max_rollbacks: u32,
+    /// A validation pass with this percentage of dead units in one layer of the static path
+    /// (or [`FROZEN_PASSES`] bit-identical passes) triggers the stall remedy; 0..=100.
+    pub dead_limit_pct: f64,
 }
 
 /// The handle the UI or CLI keeps. Dropping it stops the trainer and joins the thread.
@@ -275,6 +327,24 @@ impl Emitter {
     }
 }
 
+/// The remedy for a stalled run: revive dead units (function-preserving); when none are dead,
+/// halve the learning rate. Returns what was done, in words.
+fn remedy_stall<S: Session>(session: &mut S) -> Result<String, String> {
+    let layers = session.activity_summary().unwrap_or_default();
+    let revived = session.revive_dead_units()?;
+    if revived > 0 {
+        Ok(format!(
+            "revived {revived} dead units with fresh weights (output unchanged); dead per layer before: {layers}"
+        ))
+    } else {
+        let lr = session.learning_rate() * 0.5;
+        session.set_learning_rate(lr);
+        Ok(format!(
+            "no dead unit to revive: learning rate halved to {lr:e}"
+        ))
+    }
+}
+
 fn run_loop<S: Session>(
     session: &mut S,
     config: LoopConfig,
@@ -287,6 +357,7 @@ fn run_loop<S: Session>(
     let mut rollbacks = 0u32;
     let mut trained_secs = history.train.last().map(|r| r.wall_secs).unwrap_or(0.0);
     let mut paused = false;
+    let mut last_remedy = 0u64;
     emit.send(TrainEvent::Started {
         run_dir: config.run_dir.clone(),
         step,
@@ -383,6 +454,17 @@ fn run_loop<S: Session>(
             v.wall_secs = trained_secs;
             history.validation.push(v);
             emit.send(TrainEvent::Validation(v));
+            if let Some(reason) =
+                stall_reason(&history.validation, config.dead_limit_pct, last_remedy)
+            {
+                last_remedy = step;
+                let remedy = remedy_stall(session)?;
+                emit.send(TrainEvent::Stalled {
+                    step,
+                    reason,
+                    remedy,
+                });
+            }
         }
         if step.is_multiple_of(config.snapshot_every)
             && let Ok(weights) = session.snapshot()

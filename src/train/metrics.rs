@@ -24,6 +24,19 @@ pub struct MetricRecord {
     pub gravity: f64,
     /// Inertia term per garment, joules.
     pub inertia: f64,
+    /// Bending as the official code defines it: plain mean over every pair of adjacent faces
+    /// of the change of the unsigned angle between their normals, radians.
+    #[serde(default)]
+    pub paper_bending: f64,
+    /// Baraff-Witkin stretch as the official code defines it: area-weighted mean of
+    /// `| |w_u| - 1 | + | |w_v| - 1 |` on rest frames rotated onto `+Z`, unitless.
+    #[serde(default)]
+    pub paper_stretch: f64,
+    /// Dead ReLU units, percent 0..=100, of the worst layer on the path from the pose to the
+    /// garment (static encoder and decoder): units whose output is zero for every window of
+    /// the batch. Measured on validation passes only (0 on training steps).
+    #[serde(default)]
+    pub dead_units_pct: f64,
 }
 
 impl MetricRecord {
@@ -93,6 +106,8 @@ impl MetricRecord {
             collision_pct: m.collision_pct.unwrap_or(0.0),
             gravity: m.gravity_j,
             inertia: m.inertia_j.unwrap_or(0.0),
+            paper_bending: m.paper_bending_rad,
+            paper_stretch: m.paper_stretch,
             ..Default::default()
         }
     }
@@ -110,6 +125,9 @@ impl MetricRecord {
             collision_pct: sum(|r| r.collision_pct),
             gravity: sum(|r| r.gravity),
             inertia: sum(|r| r.inertia),
+            paper_bending: sum(|r| r.paper_bending),
+            paper_stretch: sum(|r| r.paper_stretch),
+            dead_units_pct: sum(|r| r.dead_units_pct),
         }
     }
 }

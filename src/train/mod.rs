@@ -8,6 +8,7 @@
 //! - [`run_dir`]: the run directory layout (resume, eval, bake).
 //! - [`handle`]: the thread loop, commands, events, divergence rollback.
 
+pub mod compare;
 pub mod config;
 pub mod data;
 pub mod eval;
@@ -17,6 +18,7 @@ pub mod metrics;
 pub mod run_dir;
 pub mod session;
 pub mod trained;
+pub mod warm_start;
 
 pub use config::{BackendKind, InertiaMode, TrainConfig};
 pub use eval::{EvalReport, evaluate};
@@ -114,6 +116,9 @@ pub struct TrainSetup {
     pub location: RunLocation,
 }
 
+/// L-BFGS iterations per step of the warm-start drape simulation.
+pub const PREDRAPE_ITERATIONS: usize = 100;
+
 /// Starts training runs.
 pub struct Trainer;
 
@@ -206,7 +211,19 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         }
         model = meta.model;
     }
-    let net = model.init(train_data.input_joints, garment.vertex_count(), &device)?;
+    let mut net = model.init(train_data.input_joints, garment.vertex_count(), &device)?;
+    if !resume && train.predrape_secs > 0.0 && model.basis_bias {
+        let drape = warm_start::simulated_drape(
+            &avatar,
+            &garment,
+            &fabric,
+            &scene.effects,
+            train.predrape_secs,
+            train.fps,
+            PREDRAPE_ITERATIONS,
+        )?;
+        warm_start::set_basis_bias_to_drape(&mut net, &garment, &drape, &device)?;
+    }
     let terms = PhysicsTerms::new(&garment, &fabric, &scene.effects, &device)?;
     let lbs = GarmentLbs::from_garment(&garment, avatar.skeleton.len(), &device)?;
     if !resume {
@@ -221,6 +238,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
             garment_vertices: garment.vertex_count(),
             garment_fingerprint: fingerprint,
             garment_name: garment.name.clone(),
+            avatar_fingerprint: Some(run_dir::avatar_fingerprint(&avatar)),
         };
         let scene_toml = scene_config
             .to_toml_string()
@@ -239,7 +257,11 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         train: train_data,
         validation,
         run,
+        init_std: model.init_std,
     });
+    if !resume && train.centre_init {
+        session.centre_biases()?;
+    }
     let mut history = MetricHistory::default();
     let mut start_step = 0;
     if resume && let Some(step) = session.run_dir().latest_step() {
@@ -258,6 +280,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         snapshot_every: train.snapshot_every,
         checkpoint_every: train.checkpoint_every,
         max_rollbacks: 8,
+        dead_limit_pct: train.dead_limit_pct,
     };
     Ok((session, loop_config))
 }

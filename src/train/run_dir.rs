@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 use crate::io::export::atomic::{AtomicDir, write_atomic};
 use crate::model::{ClothNetConfig, DescriptorConfig};
 use crate::physics::{Effects, FabricParams};
-use crate::scene::Garment;
+use crate::scene::{Avatar, Garment};
 
 use super::TrainError;
 use super::config::TrainConfig;
@@ -50,6 +50,10 @@ pub struct RunMeta {
     pub garment_fingerprint: u64,
     /// Name of the garment.
     pub garment_name: String,
+    /// Fingerprint of the avatar's rest body and skeleton ([`avatar_fingerprint`]), to refuse a
+    /// run whose avatar changed; `None` in runs written before it was recorded.
+    #[serde(default)]
+    pub avatar_fingerprint: Option<u64>,
 }
 
 /// Mutable state saved with each checkpoint.
@@ -83,6 +87,39 @@ pub fn garment_fingerprint(garment: &Garment) -> u64 {
         }
     }
     for f in &garment.mesh.faces {
+        for i in f {
+            eat(&i.to_le_bytes());
+        }
+    }
+    h
+}
+
+/// FNV-1a fingerprint of an avatar: its joint names and parents, the rest-pose joint
+/// positions, and the rest body's positions and faces.
+pub fn avatar_fingerprint(avatar: &Avatar) -> u64 {
+    let mut h: u64 = 0xcbf29ce484222325;
+    let mut eat = |bytes: &[u8]| {
+        for b in bytes {
+            h ^= u64::from(*b);
+            h = h.wrapping_mul(0x100000001b3);
+        }
+    };
+    let skeleton = &avatar.skeleton;
+    for (name, parent) in skeleton.names.iter().zip(&skeleton.parents) {
+        eat(name.as_bytes());
+        eat(&parent.map_or(u64::MAX, |p| p as u64).to_le_bytes());
+    }
+    for m in skeleton.world_from_joint(&skeleton.rest_pose()) {
+        for c in [m[(0, 3)], m[(1, 3)], m[(2, 3)]] {
+            eat(&c.to_le_bytes());
+        }
+    }
+    for p in &avatar.rest_mesh.positions {
+        for c in p.iter() {
+            eat(&c.to_le_bytes());
+        }
+    }
+    for f in &avatar.rest_mesh.faces {
         for i in f {
             eat(&i.to_le_bytes());
         }

@@ -18,6 +18,7 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 
+use crate::model::activity::{Activity, revive_dead_units, unit_activity};
 use crate::model::{ClothNet, GarmentLbs, InferenceWeights};
 use crate::physics::metrics::History;
 use crate::physics::{BodyBatch, ClothMetrics, Contacts, FabricParams, LossTerms, PhysicsTerms};
@@ -50,6 +51,10 @@ pub struct NeuralSession {
     validation: Dataset,
     rng: StdRng,
     run: RunDir,
+    /// Unit activity of the last validation pass.
+    activity: Option<Activity>,
+    /// Standard deviation of fresh weights when dead units are revived.
+    init_std: f64,
 }
 
 /// The parts a session is built from.
@@ -74,6 +79,8 @@ pub struct SessionParts {
     pub validation: Dataset,
     /// Run directory.
     pub run: RunDir,
+    /// Standard deviation of fresh FC weights (the model's `init_std`), for reviving units.
+    pub init_std: f64,
 }
 
 impl NeuralSession {
@@ -95,6 +102,8 @@ impl NeuralSession {
             validation: parts.validation,
             rng: StdRng::seed_from_u64(seed ^ 0x5eed),
             run: parts.run,
+            activity: None,
+            init_std: parts.init_std,
         }
     }
 
@@ -121,6 +130,19 @@ impl NeuralSession {
         &self.model
     }
 
+    /// Centres the biases of the network on the probe windows (data-dependent initialisation,
+    /// [`crate::model::activity::centre_biases`]); call before the first step.
+    pub fn centre_biases(&mut self) -> Result<(), TrainError> {
+        let (statics, dynamics) = self.probe_descriptors();
+        crate::model::activity::centre_biases(&mut self.model, statics, dynamics)?;
+        Ok(())
+    }
+
+    /// Replaces the network (e.g. a warm start); the optimiser state is kept.
+    pub fn set_model(&mut self, model: ClothNet) {
+        self.model = model;
+    }
+
     /// The run directory.
     pub fn run_dir(&self) -> &RunDir {
         &self.run
@@ -128,6 +150,19 @@ impl NeuralSession {
 
     fn tensor4(&self, data: Vec<f32>, shape: [usize; 4]) -> Tensor<4> {
         Tensor::from_data(TensorData::new(data, shape), &self.device)
+    }
+
+    /// Pinning targets of the last frame of `batch` (`[B, V, 3]`): the skinned template, where
+    /// the reference simulator holds pinned vertices too. `None` when nothing is pinned or the
+    /// scene's pinning effect is off.
+    fn pin_target(&self, batch: &Batch) -> Option<Tensor<3>> {
+        self.terms.tensors().pinned.as_ref()?;
+        let (b, v) = (batch.size, self.garment.vertex_count());
+        let blended = self
+            .tensor4(batch.blended.clone(), [b, 3, v, 12])
+            .narrow(1, 2, 1);
+        let template = self.lbs.rest(Tensor::zeros([b, 1, v, 3], &self.device));
+        Some(super::losses::skin_blended(template, blended).reshape([b, v, 3]))
     }
 
     /// Posed garment `[B, 3, V, 3]` of the last three frames of `batch`, with `augment` samples
@@ -181,10 +216,16 @@ impl NeuralSession {
             ),
             None => None,
         };
-        let losses = self
+        let mut losses = self
             .terms
             .static_losses_with(x_t, contacts.as_ref())
             .map_err(|e| e.to_string())?;
+        if let Some(pinning) = self
+            .pin_target(batch)
+            .and_then(|target| self.terms.pinning(x_t, &target))
+        {
+            losses.push(crate::physics::Term::Pinning, pinning);
+        }
         Ok((contacts, losses))
     }
 
@@ -198,6 +239,40 @@ impl NeuralSession {
             .map(|&(m, f)| data.body(&self.avatar, m, f))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Some(BodyBatch::new(bodies)))
+    }
+
+    /// Descriptors `[B, T, J, 9]` and `[B, T, J, 12]` of the probe windows that decide whether
+    /// a unit is dead: [`VALIDATION_WINDOWS`] windows spread evenly over the validation motions
+    /// and as many over the training motions (a validation split of one motion, e.g. a turn,
+    /// shows nearly one pose: half of any layer would look dead on it alone).
+    fn probe_descriptors(&self) -> (Tensor<4>, Option<Tensor<4>>) {
+        let frames = self.window_frames();
+        let mut probe = self.train.batch(
+            &self.train.even_windows(VALIDATION_WINDOWS),
+            frames,
+            &self.garment.skin,
+        );
+        if !self.validation.is_empty() {
+            let v = self.validation.batch(
+                &self.validation.even_windows(VALIDATION_WINDOWS),
+                frames,
+                &self.garment.skin,
+            );
+            probe.size += v.size;
+            probe.static_desc.extend(v.static_desc);
+            probe.dynamic_desc.extend(v.dynamic_desc);
+        }
+        let (b, j) = (probe.size, self.train.input_joints);
+        let statics = self.tensor4(probe.static_desc, [b, frames, j, 9]);
+        let dynamics = (self.model.kind() != crate::model::EncoderKind::StaticOnly)
+            .then(|| self.tensor4(probe.dynamic_desc, [b, frames, j, 12]));
+        (statics, dynamics)
+    }
+
+    /// Per-layer unit activity of the network on the probe windows.
+    fn activity(&self) -> Result<Activity, String> {
+        let (statics, dynamics) = self.probe_descriptors();
+        unit_activity(&self.model, statics, dynamics).map_err(|e| e.to_string())
     }
 
     fn record(&self, metrics: &ClothMetrics, loss: f64) -> MetricRecord {
@@ -220,14 +295,21 @@ impl Session for NeuralSession {
     fn step(&mut self) -> Result<MetricRecord, String> {
         let b = self.config.batch_size;
         let windows = self.train.sample_windows(b, &mut self.rng);
-        let batch = self
-            .train
-            .batch(&windows, self.window_frames(), &self.garment.skin);
         let augment = if self.terms.effects().dynamics && b >= 2 {
             ((self.config.augmentation_fraction * b as f32).round() as usize).min(b - 1)
         } else {
             0
         };
+        // Still windows come first, augmented ones last; without dynamics every window is
+        // already quasi-static.
+        let still = if self.terms.effects().dynamics {
+            ((self.config.still_fraction * b as f32).round() as usize).min(b - augment)
+        } else {
+            0
+        };
+        let batch =
+            self.train
+                .batch_with_still(&windows, still, self.window_frames(), &self.garment.skin);
         let x = self.predict(&batch, augment);
         let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
         let (contacts, losses) = self.static_losses(&self.train, &batch, &x_t)?;
@@ -320,7 +402,24 @@ impl Session for NeuralSession {
             .terms
             .metrics(&x_t, contacts.as_ref(), Some(&history))
             .map_err(|e| e.to_string())?;
-        Ok(self.record(&metrics, loss))
+        let activity = self.activity()?;
+        let mut record = self.record(&metrics, loss);
+        record.dead_units_pct = activity.worst_static_path_pct();
+        self.activity = Some(activity);
+        Ok(record)
+    }
+
+    fn activity_summary(&self) -> Option<String> {
+        self.activity.as_ref().map(Activity::summary)
+    }
+
+    fn revive_dead_units(&mut self) -> Result<usize, String> {
+        let (statics, dynamics) = self.probe_descriptors();
+        let z = self.model.latent_code(statics, dynamics, 1.0).detach();
+        let [b, t, latent] = z.dims();
+        let revived = revive_dead_units(&mut self.model, z.reshape([b * t, latent]), self.init_std)
+            .map_err(|e| e.to_string())?;
+        Ok(revived.iter().sum())
     }
 
     fn weights_finite(&self) -> bool {

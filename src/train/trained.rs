@@ -11,7 +11,7 @@ use crate::model::{ClothNet, InferenceWeights};
 use crate::scene::Scene;
 use crate::scene::config::SceneConfig;
 
-use super::run_dir::{RunDir, RunMeta, garment_fingerprint};
+use super::run_dir::{RunDir, RunMeta, avatar_fingerprint, garment_fingerprint};
 use super::{BackendKind, TrainError, device_for};
 
 /// A trained model ready to evaluate or bake.
@@ -51,8 +51,22 @@ pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
     let scene = load_scene(&config, &root, &scene_path)?.scene;
     if garment_fingerprint(&scene.garment) != meta.garment_fingerprint {
         return Err(TrainError::Checkpoint(format!(
-            "the scene's garment '{}' no longer matches the one the run was trained on: {}",
+            "the garment changed since training: the scene's garment '{}' no longer matches \
+             the one the run was trained on ('{}', {} vertices): {}",
             scene.garment.name,
+            meta.garment_name,
+            meta.garment_vertices,
+            root.display()
+        )));
+    }
+    if meta
+        .avatar_fingerprint
+        .is_some_and(|f| f != avatar_fingerprint(&scene.avatar))
+    {
+        return Err(TrainError::Checkpoint(format!(
+            "the avatar changed since training: the scene's avatar '{}' no longer matches the \
+             one the run was trained on (the garment is unchanged): {}",
+            scene.avatar.name,
             root.display()
         )));
     }

@@ -1,0 +1,188 @@
+//! `neural-cloth compare RUN`: checks a trained run against the reference simulator on the
+//! same motion (distances, dynamic amplitude, hem radius, the paper's metrics) with a progress
+//! bar; prints a table, or JSON with `--json`.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+use neural_cloth::train::compare::{CompareOptions, CompareReport, MotionComparison, compare};
+use neural_cloth::train::load_trained;
+
+/// Arguments of `compare`.
+#[derive(clap::Args, Debug)]
+pub struct CompareArgs {
+    /// Run folder (or checkpoint folder) of a trained model.
+    pub checkpoint: PathBuf,
+    /// Motion of the run's scene; default: every motion of the validation split.
+    #[arg(long)]
+    pub motion: Option<String>,
+    /// Dynamic weight w of the network in [0, 2] (1 = as trained).
+    #[arg(long, default_value_t = 1.0)]
+    pub w: f32,
+    /// L-BFGS iterations per frame of the reference simulation.
+    #[arg(long, default_value_t = 200)]
+    pub iterations: usize,
+    /// Seconds the simulator holds the first pose before the motion plays.
+    #[arg(long, default_value_t = 0.5)]
+    pub settle: f32,
+    /// Simulate again even when RUN/reference/ holds this reference.
+    #[arg(long)]
+    pub no_cache: bool,
+    /// Print the report as JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `compare`.
+pub fn run(args: CompareArgs) -> anyhow::Result<()> {
+    let trained = load_trained(&args.checkpoint)?;
+    let options = CompareOptions {
+        w: args.w,
+        iterations: args.iterations,
+        settle_secs: args.settle,
+        use_cache: !args.no_cache,
+        ..Default::default()
+    };
+    options.validate()?;
+    let bar = ProgressBar::new(1000);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let report = compare(&trained, args.motion.as_deref(), &options, &mut |p| {
+        bar.set_position((1000.0 * p.fraction()).round() as u64);
+        bar.set_message(format!(
+            "{}: {} ({}/{})",
+            p.motion,
+            p.phase.label(),
+            p.done,
+            p.total
+        ));
+        true
+    })?;
+    bar.finish_and_clear();
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", table(&report));
+    }
+    Ok(())
+}
+
+/// `value` with `decimals`, or a dash.
+fn opt(value: Option<f64>, decimals: usize) -> String {
+    value.map_or_else(|| "—".into(), |v| format!("{v:.decimals$}"))
+}
+
+/// The report as a readable text table.
+pub fn table(report: &CompareReport) -> String {
+    let o = &report.options;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "run {} (step {}): garment '{}', {} vertices, {} fps, w = {}",
+        report.run.display(),
+        report.step,
+        report.garment,
+        report.vertices,
+        report.fps,
+        o.w
+    );
+    let _ = writeln!(
+        s,
+        "reference: {} L-BFGS iterations per frame after settling {} s on the first pose",
+        o.iterations, o.settle_secs
+    );
+    let _ = writeln!(
+        s,
+        "still frame: every joint slower than {} m/s for the last {} s; swing: mean distance \
+         from the quasi-static result (network at w = 0, simulator without dynamics)",
+        o.still_speed_m_per_s, o.still_window_secs
+    );
+    for m in &report.motions {
+        motion_table(&mut s, m);
+    }
+    s
+}
+
+/// One motion's block of the table.
+fn motion_table(s: &mut String, m: &MotionComparison) {
+    let r = &m.measures;
+    let source = match m.reference.cached {
+        true => "cached".to_string(),
+        false => format!("simulated in {:.1} s", m.reference.simulate_secs),
+    };
+    let _ = writeln!(
+        s,
+        "\nmotion '{}': {} frames ({} still); reference {source}: {}",
+        m.name,
+        r.frames,
+        r.still_frames,
+        m.reference.path.display()
+    );
+    let _ = writeln!(
+        s,
+        "  {:<28}{:>12}{:>12}{:>12}",
+        "", "all frames", "still", "moving"
+    );
+    let mut row = |label: &str, values: [Option<f64>; 3], decimals: usize| {
+        let _ = writeln!(
+            s,
+            "  {label:<28}{:>12}{:>12}{:>12}",
+            opt(values[0], decimals),
+            opt(values[1], decimals),
+            opt(values[2], decimals)
+        );
+    };
+    row(
+        "distance mean, mm",
+        [
+            Some(r.all.mean_mm),
+            r.still.map(|d| d.mean_mm),
+            r.moving.map(|d| d.mean_mm),
+        ],
+        1,
+    );
+    row(
+        "distance p95, mm",
+        [
+            Some(r.all.p95_mm),
+            r.still.map(|d| d.p95_mm),
+            r.moving.map(|d| d.p95_mm),
+        ],
+        1,
+    );
+    for (label, a) in [
+        ("swing network, mm", r.amplitude.network),
+        ("swing simulator, mm", r.amplitude.simulator),
+    ] {
+        row(label, [Some(a.all_mm), a.still_mm, a.moving_mm], 1);
+    }
+    if let Some(hem) = &r.hem {
+        row(
+            "hem radius network, m",
+            [
+                None,
+                hem.still.map(|h| h.network_m),
+                hem.moving.map(|h| h.network_m),
+            ],
+            3,
+        );
+        row(
+            "hem radius simulator, m",
+            [
+                None,
+                hem.still.map(|h| h.simulator_m),
+                hem.moving.map(|h| h.simulator_m),
+            ],
+            3,
+        );
+    }
+    let _ = writeln!(s, "  {:<28}{:>12}{:>12}", "metrics", "network", "simulator");
+    let (net, sim) = (m.metrics.network.named(), m.metrics.simulator.named());
+    for ((name, a), (_, b)) in net.iter().zip(&sim) {
+        let _ = writeln!(s, "  {name:<28}{a:>12.4}{b:>12.4}");
+    }
+}
