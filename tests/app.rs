@@ -446,6 +446,7 @@ impl TrainerLauncher for FakeLauncher {
             checkpoint_every: 1000,
             max_rollbacks: 3,
             dead_limit_pct: 90.0,
+            warnings: Vec::new(),
         };
         if let Ok(mut r) = self.requests.lock() {
             r.push(request);

@@ -4,26 +4,19 @@
 //! with a budget, shows its progress, can cancel it, and tabulates the result. It also holds
 //! "Check against simulation" of the current run ([`super::sim_check`]).
 
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
+use std::sync::Arc;
 
 use crate::report::Progress;
 use crate::report::accuracy::{CostOptions, CostResult, run_cost_experiment};
 use crate::scene::Scene;
 
-/// A running experiment.
-struct CostJob {
-    progress: Arc<Mutex<Progress>>,
-    cancel: Arc<AtomicBool>,
-    thread: JoinHandle<Result<CostResult, String>>,
-}
+use super::background::{BackgroundJob, poll_job};
 
 /// State of the Cost panel.
 pub struct CostPanel {
     /// Budget of one experiment, seconds; 30..=1800, default 120.
     pub budget_secs: f64,
-    job: Option<CostJob>,
+    job: Option<BackgroundJob<Progress, CostResult>>,
     /// The last result, or the error that ended the last run.
     pub result: Option<Result<CostResult, String>>,
     /// "Check against simulation" of the current run.
@@ -57,59 +50,39 @@ impl CostPanel {
         if self.job.is_some() {
             return Err("an experiment is already running".into());
         }
-        let progress = Arc::new(Mutex::new(Progress::default()));
-        let cancel = Arc::new(AtomicBool::new(false));
         let options = CostOptions {
             budget_secs: self.budget_secs.clamp(30.0, 1800.0),
             ..Default::default()
         };
-        let (p, c) = (progress.clone(), cancel.clone());
-        let thread = std::thread::Builder::new()
-            .name("neural-cloth-cost".into())
-            .spawn(move || {
-                let mut report = |now: &Progress| {
-                    if let Ok(mut slot) = p.lock() {
-                        *slot = now.clone();
-                    }
-                    notify();
-                    !c.load(Ordering::Relaxed)
-                };
+        self.job = Some(BackgroundJob::spawn(
+            "neural-cloth-cost",
+            Progress::default(),
+            notify,
+            move |reporter| {
+                let mut report = |now: &Progress| reporter.report(now.clone());
                 run_cost_experiment(&scene, &options, &mut report).map_err(|e| e.to_string())
-            })
-            .map_err(|e| e.to_string())?;
-        self.job = Some(CostJob {
-            progress,
-            cancel,
-            thread,
-        });
+            },
+        )?);
         Ok(())
     }
 
     /// Asks the running experiment to stop at its next check.
     pub fn cancel(&self) {
         if let Some(job) = &self.job {
-            job.cancel.store(true, Ordering::Relaxed);
+            job.cancel();
         }
     }
 
     /// Collects a finished experiment (never blocks on a running one).
     pub fn poll(&mut self) {
-        if self.job.as_ref().is_some_and(|j| j.thread.is_finished())
-            && let Some(job) = self.job.take()
-        {
-            self.result = Some(
-                job.thread
-                    .join()
-                    .unwrap_or_else(|_| Err("the experiment thread panicked".into())),
-            );
+        if let Some(result) = poll_job(&mut self.job) {
+            self.result = Some(result);
         }
     }
 
     /// Progress of the running experiment.
     pub fn progress(&self) -> Option<Progress> {
-        self.job
-            .as_ref()
-            .and_then(|j| j.progress.lock().ok().map(|p| p.clone()))
+        self.job.as_ref().and_then(BackgroundJob::progress)
     }
 }
 

@@ -9,6 +9,7 @@
 //! - Training runs on the trainer's thread ([`training::TrainingControl`]); the UI drains its
 //!   events once per frame and never waits for it.
 
+pub mod background;
 pub mod cost_panel;
 pub mod export;
 pub mod frame_builder;

@@ -96,6 +96,20 @@ impl NeuralClothApp {
                 if let TrainingState::Finished(Err(e)) = &state {
                     ui.colored_label(egui::Color32::from_rgb(255, 100, 90), e);
                 }
+                if let Some(v) = self.state.training.history.validation.last() {
+                    let text = format!(
+                        "dead units: {:.0} % (worst layer, step {})",
+                        v.dead_units_pct, v.step
+                    );
+                    if v.dead_units_pct >= self.state.train_config.dead_limit_pct {
+                        ui.colored_label(egui::Color32::from_rgb(255, 170, 60), text)
+                            .on_hover_text(
+                                "the trainer revives dead units when a layer passes the limit",
+                            );
+                    } else {
+                        ui.weak(text);
+                    }
+                }
                 ui.weak(format!("preview: {}", self.state.preview.describe()));
             });
     }

@@ -3,19 +3,12 @@
 //! progress and cancel, and tabulates the result.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
+use std::sync::Arc;
 
 use crate::train::compare::{CompareOptions, CompareProgress, CompareReport, compare};
 use crate::train::load_trained;
 
-/// A running comparison.
-struct CheckJob {
-    progress: Arc<Mutex<Option<CompareProgress>>>,
-    cancel: Arc<AtomicBool>,
-    thread: JoinHandle<Result<CompareReport, String>>,
-}
+use super::background::{BackgroundJob, poll_job};
 
 /// State of the "Check against simulation" action.
 pub struct SimCheck {
@@ -24,7 +17,7 @@ pub struct SimCheck {
     /// Compare only the motion shown in the viewport (otherwise the validation motions);
     /// default false.
     pub shown_motion_only: bool,
-    job: Option<CheckJob>,
+    job: Option<BackgroundJob<Option<CompareProgress>, CompareReport>>,
     /// The last result, or the error that ended the last check.
     pub result: Option<Result<CompareReport, String>>,
 }
@@ -76,57 +69,37 @@ impl SimCheck {
             iterations: self.iterations.clamp(1, 10_000),
             ..Default::default()
         };
-        let progress = Arc::new(Mutex::new(None));
-        let cancel = Arc::new(AtomicBool::new(false));
-        let (p, c) = (progress.clone(), cancel.clone());
-        let thread = std::thread::Builder::new()
-            .name("neural-cloth-compare".into())
-            .spawn(move || {
+        self.job = Some(BackgroundJob::spawn(
+            "neural-cloth-compare",
+            None,
+            notify,
+            move |reporter| {
                 let trained = load_trained(&run_dir).map_err(|e| e.to_string())?;
-                let mut report = |now: CompareProgress| {
-                    if let Ok(mut slot) = p.lock() {
-                        *slot = Some(now);
-                    }
-                    notify();
-                    !c.load(Ordering::Relaxed)
-                };
+                let mut report = |now: CompareProgress| reporter.report(Some(now));
                 compare(&trained, motion.as_deref(), &options, &mut report)
                     .map_err(|e| e.to_string())
-            })
-            .map_err(|e| e.to_string())?;
-        self.job = Some(CheckJob {
-            progress,
-            cancel,
-            thread,
-        });
+            },
+        )?);
         Ok(())
     }
 
     /// Asks the running comparison to stop at its next frame.
     pub fn cancel(&self) {
         if let Some(job) = &self.job {
-            job.cancel.store(true, Ordering::Relaxed);
+            job.cancel();
         }
     }
 
     /// Collects a finished comparison (never blocks on a running one).
     pub fn poll(&mut self) {
-        if self.job.as_ref().is_some_and(|j| j.thread.is_finished())
-            && let Some(job) = self.job.take()
-        {
-            self.result = Some(
-                job.thread
-                    .join()
-                    .unwrap_or_else(|_| Err("the comparison thread panicked".into())),
-            );
+        if let Some(result) = poll_job(&mut self.job) {
+            self.result = Some(result);
         }
     }
 
     /// Progress of the running comparison.
     pub fn progress(&self) -> Option<CompareProgress> {
-        self.job
-            .as_ref()
-            .and_then(|j| j.progress.lock().ok().and_then(|p| p.clone()))
+        self.job.as_ref().and_then(|j| j.progress().flatten())
     }
 }
 

@@ -310,6 +310,7 @@ impl TrainingControl {
                 }
             }
             TrainEvent::Applied(what) => self.note(format!("applied: {what}")),
+            TrainEvent::Warning(w) => self.note(format!("⚠ {w}")),
             TrainEvent::Stalled {
                 step,
                 reason,

@@ -11,7 +11,6 @@ use neural_cloth::bake::{
 };
 use neural_cloth::io::Units;
 use neural_cloth::io::scene_loader::load_motions;
-use neural_cloth::model::{InferenceEngine, InferenceOptions};
 use neural_cloth::physics::simulator::{SimOptions, Stepper};
 use neural_cloth::physics::{FabricParams, GarmentRest};
 use neural_cloth::scene::{Motion, Scene};
@@ -162,17 +161,7 @@ pub fn run(args: BakeArgs) -> anyhow::Result<()> {
     let motion = find_motion(&trained.scene, &args.output.motion, fps)?;
     let options = options(&args.output, &motion, args.w);
     neural_cloth::bake::check_options(&options)?;
-    let engine = InferenceEngine::from_scene(
-        trained.weights.clone(),
-        &trained.scene.avatar,
-        &trained.scene.garment,
-        &trained.meta.descriptors,
-        fps,
-        InferenceOptions {
-            skin_body: false,
-            ..Default::default()
-        },
-    )?;
+    let engine = trained.garment_engine()?;
     let mut source = ModelSource::new(engine, fps);
     run_bake(&trained.scene, &motion, &mut source, &options)
 }

@@ -75,7 +75,7 @@ pub struct TrainArgs {
     /// Keep zero initial biases (no data-dependent centring of the layers).
     #[arg(long)]
     pub no_centre_init: bool,
-    /// Fraction of each batch made of still windows (default 0 = the paper's batches).
+    /// Fraction of each batch made of still windows (default 0.25; 0 = the paper's batches).
     #[arg(long)]
     pub still_fraction: Option<f32>,
     /// Dead units (percent of a layer) that trigger the revive remedy (default 75).
@@ -300,6 +300,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
                 r.inertia,
                 r.dead_units_pct
             )),
+            TrainEvent::Warning(w) => say(format!("warning: {w}")),
             TrainEvent::Stalled {
                 step,
                 reason,

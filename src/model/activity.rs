@@ -75,13 +75,12 @@ impl Activity {
     }
 }
 
-/// Counts the units of `x` (`[.., units]`) that are zero for every leading index.
-fn dead_units<const D: usize>(x: &Tensor<D>) -> Result<(usize, usize), ModelError> {
+/// Per unit of `x` (`[.., units]`), the largest value over every leading index.
+fn unit_max<const D: usize>(x: &Tensor<D>) -> Result<Vec<f32>, ModelError> {
     let dims = x.dims();
     let units = dims[D - 1];
     let rows = dims[..D - 1].iter().product::<usize>().max(1);
-    let max = x
-        .clone()
+    x.clone()
         .detach()
         .reshape([rows, units])
         .max_dim(0)
@@ -89,8 +88,13 @@ fn dead_units<const D: usize>(x: &Tensor<D>) -> Result<(usize, usize), ModelErro
         .map_err(|e| ModelError::TensorRead {
             what: "activations".into(),
             reason: e.to_string(),
-        })?;
-    Ok((max.iter().filter(|v| **v <= 0.0).count(), units))
+        })
+}
+
+/// Counts the units of `x` (`[.., units]`) that are zero for every leading index.
+fn dead_units<const D: usize>(x: &Tensor<D>) -> Result<(usize, usize), ModelError> {
+    let max = unit_max(x)?;
+    Ok((max.iter().filter(|v| **v <= 0.0).count(), max.len()))
 }
 
 /// Applies `mlp` to `x` and records each layer's activity under `prefix.k`.
@@ -151,18 +155,9 @@ pub fn unit_activity(
     Ok(Activity { layers })
 }
 
-/// Which units of each ReLU layer to revive, by layer name (as in [`LayerActivity::name`]).
+/// Which units of `x` (`[N, units]`, ReLU outputs) are zero on every row.
 fn dead_mask(x: &Tensor<2>) -> Result<Vec<bool>, ModelError> {
-    let max = x
-        .clone()
-        .detach()
-        .max_dim(0)
-        .try_into_vec_as::<f32>()
-        .map_err(|e| ModelError::TensorRead {
-            what: "activations".into(),
-            reason: e.to_string(),
-        })?;
-    Ok(max.iter().map(|v| *v <= 0.0).collect())
+    Ok(unit_max(x)?.iter().map(|v| *v <= 0.0).collect())
 }
 
 /// Replaces the columns of `layer` (its units) marked in `mask` by fresh `N(0, std²)`

@@ -39,7 +39,7 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::Vec3;
-use crate::model::{InferenceEngine, InferenceOptions, ModelError};
+use crate::model::ModelError;
 use crate::physics::metrics::sequence_metrics;
 use crate::physics::{PhysicsError, PhysicsTerms, PosedBody};
 use crate::scene::config::Split;
@@ -346,21 +346,10 @@ type Frames = Vec<Vec<Vec3>>;
 fn play_network(
     trained: &TrainedModel,
     poses: &[Pose],
-    fps: f32,
     w: f32,
     say: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
 ) -> Result<(Frames, Frames), TrainError> {
-    let mut engine = InferenceEngine::from_scene(
-        trained.weights.clone(),
-        &trained.scene.avatar,
-        &trained.scene.garment,
-        &trained.meta.descriptors,
-        fps,
-        InferenceOptions {
-            skin_body: false,
-            ..Default::default()
-        },
-    )?;
+    let mut engine = trained.garment_engine()?;
     let total = 2 * poses.len();
     let mut passes = Vec::with_capacity(2);
     for (pass, weight) in [w, 0.0].into_iter().enumerate() {
@@ -392,7 +381,7 @@ fn compare_motion(
     let (scene, meta) = (&trained.scene, &trained.meta);
     let fps = motion.fps;
     let reference = reference_for(trained, motion, options, say)?;
-    let (network, network_static) = play_network(trained, &motion.frames, fps, options.w, say)?;
+    let (network, network_static) = play_network(trained, &motion.frames, options.w, say)?;
     if !say(ComparePhase::Metrics, 0, 1) {
         return Err(PhysicsError::Cancelled {
             frames: motion.frames.len(),
@@ -418,16 +407,7 @@ fn compare_motion(
             simulator_static: &reference.quasi_static,
         },
     )?;
-    let bodies: Option<Vec<Arc<PosedBody>>> = match meta.effects.collision {
-        true => Some(
-            motion
-                .frames
-                .iter()
-                .map(|p| PosedBody::from_avatar(&scene.avatar, p).map(Arc::new))
-                .collect::<Result<_, _>>()?,
-        ),
-        false => None,
-    };
+    let bodies = trained.bodies_of(motion)?;
     let model = meta.fabric.cloth_model;
     let mut network_metrics =
         sequence_mean_metrics(terms, &network, bodies.as_deref(), fps, model)?;

@@ -1,13 +1,10 @@
 //! Evaluation of a trained model on a data split: the fast inference engine plays each motion
 //! of the split at the training rate, and the §4.2 metrics of every frame are averaged.
 
-use std::sync::Arc;
-
 use serde::Serialize;
 
-use crate::model::{InferenceEngine, InferenceOptions};
+use crate::physics::PhysicsTerms;
 use crate::physics::metrics::sequence_metrics;
-use crate::physics::{PhysicsTerms, PosedBody};
 use crate::scene::config::Split;
 
 use super::metrics::MetricRecord;
@@ -55,32 +52,13 @@ pub fn evaluate(trained: &TrainedModel, split: Split, w: f32) -> Result<EvalRepo
         let motion = motion
             .resample(fps)
             .map_err(crate::model::ModelError::from)?;
-        let mut engine = InferenceEngine::from_scene(
-            trained.weights.clone(),
-            &scene.avatar,
-            &scene.garment,
-            &trained.meta.descriptors,
-            fps,
-            InferenceOptions {
-                skin_body: false,
-                ..Default::default()
-            },
-        )?;
+        let mut engine = trained.garment_engine()?;
         let mut frames = Vec::with_capacity(motion.frames.len());
         for pose in &motion.frames {
             engine.step(pose, w)?;
             frames.push(engine.garment_positions().to_vec());
         }
-        let bodies: Option<Vec<Arc<PosedBody>>> = match trained.meta.effects.collision {
-            true => Some(
-                motion
-                    .frames
-                    .iter()
-                    .map(|p| PosedBody::from_avatar(&scene.avatar, p).map(Arc::new))
-                    .collect::<Result<_, _>>()?,
-            ),
-            false => None,
-        };
+        let bodies = trained.bodies_of(&motion)?;
         let per_frame = sequence_metrics(&terms, &frames, bodies.as_deref(), 1.0 / fps)?;
         let records: Vec<MetricRecord> = per_frame
             .iter()

@@ -75,6 +75,8 @@ pub enum TrainEvent {
         /// New learning rate.
         learning_rate: f64,
     },
+    /// A problem found before training ([`super::preflight`]): the scene is unlikely to learn.
+    Warning(String),
     /// Training stopped learning (dead units, or validation frozen); the remedy was applied.
     Stalled {
         /// Step of the validation pass that detected it.
@@ -196,6 +198,8 @@ pub struct LoopConfig {
     pub checkpoint_every: u64,
     /// Give up after this many rollbacks.
     pub max_rollbacks: u32,
+    /// Warnings found while preparing the run, sent right after `Started`.
+    pub warnings: Vec<String>,
     /// A validation pass with this percentage of dead units in one layer of the static path
     /// (or [`FROZEN_PASSES`] bit-identical passes) triggers the stall remedy; 0..=100.
     pub dead_limit_pct: f64,
@@ -362,6 +366,9 @@ fn run_loop<S: Session>(
         run_dir: config.run_dir.clone(),
         step,
     });
+    for w in &config.warnings {
+        emit.send(TrainEvent::Warning(w.clone()));
+    }
     'outer: loop {
         // Commands first, so pause/stop act within one step.
         loop {

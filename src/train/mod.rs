@@ -15,6 +15,7 @@ pub mod eval;
 pub mod handle;
 pub mod losses;
 pub mod metrics;
+pub mod preflight;
 pub mod run_dir;
 pub mod session;
 pub mod trained;
@@ -211,6 +212,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         }
         model = meta.model;
     }
+    let warnings = preflight::preflight_warnings(&avatar, &garment, &fabric);
     let mut net = model.init(train_data.input_joints, garment.vertex_count(), &device)?;
     if !resume && train.predrape_secs > 0.0 && model.basis_bias {
         let drape = warm_start::simulated_drape(
@@ -281,6 +283,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         checkpoint_every: train.checkpoint_every,
         max_rollbacks: 8,
         dead_limit_pct: train.dead_limit_pct,
+        warnings,
     };
     Ok((session, loop_config))
 }

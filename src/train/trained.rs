@@ -7,7 +7,7 @@ use burn::module::Module;
 use burn::tensor::Bytes;
 
 use crate::io::scene_loader::load_scene;
-use crate::model::{ClothNet, InferenceWeights};
+use crate::model::{ClothNet, InferenceEngine, InferenceOptions, InferenceWeights};
 use crate::scene::Scene;
 use crate::scene::config::SceneConfig;
 
@@ -28,6 +28,44 @@ pub struct TrainedModel {
     pub step: u64,
     /// The run directory.
     pub run: RunDir,
+}
+
+impl TrainedModel {
+    /// A fresh inference engine of these weights on the run's own scene, at the training rate
+    /// with the run's descriptor settings, garment only (no body skinning).
+    pub fn garment_engine(&self) -> Result<InferenceEngine, TrainError> {
+        Ok(InferenceEngine::from_scene(
+            self.weights.clone(),
+            &self.scene.avatar,
+            &self.scene.garment,
+            &self.meta.descriptors,
+            self.meta.train.fps,
+            InferenceOptions {
+                skin_body: false,
+                ..Default::default()
+            },
+        )?)
+    }
+
+    /// The posed body of every frame of `motion` when the run collides with the body (the
+    /// collision metric needs them), `None` otherwise.
+    pub fn bodies_of(
+        &self,
+        motion: &crate::scene::Motion,
+    ) -> Result<Option<Vec<std::sync::Arc<crate::physics::PosedBody>>>, TrainError> {
+        if !self.meta.effects.collision {
+            return Ok(None);
+        }
+        let bodies = motion
+            .frames
+            .iter()
+            .map(|p| {
+                crate::physics::PosedBody::from_avatar(&self.scene.avatar, p)
+                    .map(std::sync::Arc::new)
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Some(bodies))
+    }
 }
 
 /// Loads the newest checkpoint of the run at `run_dir` (a run directory, or a checkpoint folder

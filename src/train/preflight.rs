@@ -1,0 +1,125 @@
+//! Checks before training (issue 11, "bad input"): scenes that are known not to learn get a
+//! clear warning up front, instead of a silently dead model later.
+//!
+//! - A garment far from the body (mean distance of its vertices to the nearest body vertex at
+//!   the rest pose above [`FAR_FROM_BODY_M`]) is probably placed for another avatar or in other
+//!   units: gravity pulls it through empty space and the collision term never acts.
+//! - Stiffnesses far from the presets (more than [`STIFFNESS_RATIO`] times the default, or
+//!   less than its inverse) make the loss one term's alone: with stretch 1e4 the garment cannot
+//!   move without a strain cost that dwarfs gravity, the gradient of every other term is lost
+//!   in it, and Adam's steps only add noise to the template.
+
+use crate::geometry::KdTree;
+use crate::physics::FabricParams;
+use crate::scene::{Avatar, Garment};
+
+/// Mean garment-to-body distance above which the garment counts as far from the body, metres.
+pub const FAR_FROM_BODY_M: f64 = 0.10;
+/// Factor by which a stiffness may differ from the default before it is flagged.
+pub const STIFFNESS_RATIO: f32 = 1e3;
+
+/// Warnings about a scene that training is unlikely to learn, in words (empty when fine).
+pub fn preflight_warnings(
+    avatar: &Avatar,
+    garment: &Garment,
+    fabric: &FabricParams,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    let body = avatar.pose_vertices(&avatar.skeleton.rest_pose());
+    if !body.is_empty() && garment.vertex_count() > 0 {
+        let tree = KdTree::new(&body);
+        let total: f64 = garment
+            .mesh
+            .positions
+            .iter()
+            .filter_map(|p| tree.nearest(p))
+            .map(|(_, d2)| f64::from(d2).sqrt())
+            .sum();
+        let mean = total / garment.vertex_count() as f64;
+        if mean > FAR_FROM_BODY_M {
+            out.push(format!(
+                "the garment '{}' is on average {:.0} mm from the body at the rest pose \
+                 (more than {:.0} mm): is it placed on this avatar, in the right units? \
+                 Training will let it fall or float and is unlikely to learn a drape",
+                garment.name,
+                mean * 1e3,
+                FAR_FROM_BODY_M * 1e3
+            ));
+        }
+    }
+    let base = FabricParams::default();
+    let checks = [
+        (
+            "stretch_stiffness",
+            fabric.stretch_stiffness,
+            base.stretch_stiffness,
+        ),
+        (
+            "shear_stiffness",
+            fabric.shear_stiffness,
+            base.shear_stiffness,
+        ),
+        (
+            "bending_stiffness",
+            fabric.bending_stiffness,
+            base.bending_stiffness,
+        ),
+        ("lame_mu", fabric.lame_mu, base.lame_mu),
+    ];
+    for (name, value, default) in checks {
+        if default > 0.0
+            && value > 0.0
+            && (value / default > STIFFNESS_RATIO || default / value > STIFFNESS_RATIO)
+        {
+            out.push(format!(
+                "fabric {name} = {value:e} is more than {STIFFNESS_RATIO:e} times away from the \
+                 default {default:e}: one term will dominate the loss and the network is \
+                 unlikely to learn anything but the template"
+            ));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Vec3;
+    use crate::scene::config::SceneConfig;
+    use crate::scene::procedural::build_builtin;
+
+    fn scene() -> crate::scene::Scene {
+        let mut config = SceneConfig::default_scene();
+        if let crate::scene::config::GarmentSource::Builtin { resolution, .. } = &mut config.garment
+        {
+            *resolution = 300;
+        }
+        build_builtin(&config).unwrap()
+    }
+
+    #[test]
+    fn a_garment_far_from_the_body_and_a_stiff_fabric_are_flagged() {
+        let mut s = scene();
+        let fabric = FabricParams::default();
+        assert!(
+            preflight_warnings(&s.avatar, &s.garment, &fabric).is_empty(),
+            "{:?}",
+            preflight_warnings(&s.avatar, &s.garment, &fabric)
+        );
+        let stiff = FabricParams {
+            stretch_stiffness: 1e5,
+            ..FabricParams::default()
+        };
+        let w = preflight_warnings(&s.avatar, &s.garment, &stiff);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("stretch_stiffness"), "{w:?}");
+        s.garment
+            .mesh
+            .positions
+            .iter_mut()
+            .for_each(|p| *p += Vec3::new(0.0, 0.0, 0.5));
+        let w = preflight_warnings(&s.avatar, &s.garment, &fabric);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("from the body"), "{w:?}");
+    }
+}
