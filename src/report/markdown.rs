@@ -101,6 +101,11 @@ pub fn render(r: &Report) -> String {
         "Training budgets here are minutes on this CPU; the paper trains for hours to a day on a GPU. \
          The networks below are therefore early in training, and the findings are about what such short runs show.\n"
     );
+    let _ = writeln!(
+        s,
+        "Whether training learns cloth (the dead skirt, the remedies, and runs checked against the simulator \
+         with `neural-cloth compare`, per seed, with targets met and not met) is in [`TRAINING.md`](TRAINING.md).\n"
+    );
     accuracy(&mut s, r);
     let _ = writeln!(s, "## 2. Training curves of the default run\n");
     let last = a.training.validation.last().copied().unwrap_or_default();
