@@ -1038,6 +1038,8 @@ pinning = true
         let hem = measures.hem.unwrap();
         for pair in [hem.still, hem.moving].into_iter().flatten() {
             assert_eq!(pair.network_m, pair.simulator_m);
+            assert_eq!(pair.network_static_m, pair.simulator_static_m);
+            assert!(pair.simulator_static_m > 0.0);
         }
     }
 

@@ -179,6 +179,24 @@ fn motion_table(s: &mut String, m: &MotionComparison) {
             ],
             3,
         );
+        row(
+            "hem radius network w=0, m",
+            [
+                None,
+                hem.still.map(|h| h.network_static_m),
+                hem.moving.map(|h| h.network_static_m),
+            ],
+            3,
+        );
+        row(
+            "hem radius sim static, m",
+            [
+                None,
+                hem.still.map(|h| h.simulator_static_m),
+                hem.moving.map(|h| h.simulator_static_m),
+            ],
+            3,
+        );
     }
     let _ = writeln!(s, "  {:<28}{:>12}{:>12}", "metrics", "network", "simulator");
     let (net, sim) = (m.metrics.network.named(), m.metrics.simulator.named());

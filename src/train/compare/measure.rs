@@ -228,6 +228,13 @@ pub struct HemPair {
     pub network_m: f64,
     /// The simulator, metres.
     pub simulator_m: f64,
+    /// The network at `w = 0` (its quasi-static answer), metres.
+    #[serde(default)]
+    pub network_static_m: f64,
+    /// The simulator's quasi-static solve (dynamics off), metres: the drape an energy descent
+    /// reaches without the momentum of a fall.
+    #[serde(default)]
+    pub simulator_static_m: f64,
 }
 
 /// Hem radius about the body's vertical axis (garments below the hips only).
@@ -314,10 +321,13 @@ pub fn measure_motion(
                     .collect()
             };
             let (net, sim) = (radii(seq.network), radii(seq.simulator));
+            let (net0, sim0) = (radii(seq.network_static), radii(seq.simulator_static));
             let pair = |select: &dyn Fn(usize) -> bool| {
                 Some(HemPair {
                     network_m: mean_where(&net, select)?,
                     simulator_m: mean_where(&sim, select)?,
+                    network_static_m: mean_where(&net0, select)?,
+                    simulator_static_m: mean_where(&sim0, select)?,
                 })
             };
             Some(HemComparison {
