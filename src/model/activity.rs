@@ -28,6 +28,10 @@ pub struct LayerActivity {
     /// True for the layers on the path from the pose to the garment (static encoder and
     /// decoder); the dynamic encoder's bias-free units are legitimately silent on still poses.
     pub on_static_path: bool,
+    /// True when [`revive_dead_units`] can revive this layer's units without changing the
+    /// output: every decoder layer and every static-encoder layer but the last (the static
+    /// latent `z_S`, whose outgoing weights also carry `z_D`).
+    pub revivable: bool,
 }
 
 impl LayerActivity {
@@ -50,6 +54,16 @@ impl Activity {
         self.layers
             .iter()
             .filter(|l| l.on_static_path)
+            .map(LayerActivity::dead_pct)
+            .fold(0.0, f64::max)
+    }
+
+    /// The largest dead percentage among the layers the remedy can revive (0 when none): the
+    /// measure the stall detector acts on.
+    pub fn worst_revivable_pct(&self) -> f64 {
+        self.layers
+            .iter()
+            .filter(|l| l.revivable)
             .map(LayerActivity::dead_pct)
             .fold(0.0, f64::max)
     }
@@ -103,8 +117,10 @@ fn probe_mlp<const D: usize>(
     mut x: Tensor<D>,
     prefix: &str,
     on_static_path: bool,
+    revivable_last: bool,
     out: &mut Vec<LayerActivity>,
 ) -> Result<Tensor<D>, ModelError> {
+    let n = mlp.layers.len();
     for (k, layer) in mlp.layers.iter().enumerate() {
         x = relu(layer.forward(x));
         let (dead, units) = dead_units(&x)?;
@@ -113,6 +129,7 @@ fn probe_mlp<const D: usize>(
             units,
             dead,
             on_static_path,
+            revivable: on_static_path && (k + 1 < n || revivable_last),
         });
     }
     Ok(x)
@@ -131,13 +148,14 @@ pub fn unit_activity(
     let [b, t, j, c] = static_desc.dims();
     if let Some(enc) = &net.static_encoder {
         let flat = static_desc.clone().reshape([b, t, j * c]);
-        probe_mlp(enc, flat, "static", true, &mut layers)?;
+        probe_mlp(enc, flat, "static", true, false, &mut layers)?;
     }
     if let (Some(enc), Some(d)) = (&net.dynamic_encoder, &dynamic_desc) {
         let x = probe_mlp(
             &enc.joint_mlp,
             d.clone(),
             "dynamic.joint",
+            false,
             false,
             &mut layers,
         )?;
@@ -147,11 +165,12 @@ pub fn unit_activity(
             x.reshape([b, t, j * c]),
             "dynamic.fc",
             false,
+            false,
             &mut layers,
         )?;
     }
     let z = net.latent_code(static_desc, dynamic_desc, 1.0).detach();
-    probe_mlp(&net.decoder.mlp, z, "decoder", true, &mut layers)?;
+    probe_mlp(&net.decoder.mlp, z, "decoder", true, true, &mut layers)?;
     Ok(Activity { layers })
 }
 
@@ -227,32 +246,61 @@ fn column_mask(mask: &[bool], rows: usize, device: &burn::tensor::Device) -> Ten
     .repeat_dim(0, rows)
 }
 
-/// Re-initialises every dead unit of the decoder MLP (dead over the codes `z`, `[N, latent]`)
-/// with fresh incoming weights (`N(0, std²)`, zero bias) and zero outgoing weights (the next
-/// layer's, or the basis rows for the last layer). The output of the network on any input is
-/// unchanged by the repair; the revived units get gradients again. Returns the number of units
-/// revived per decoder layer.
+/// Re-initialises every dead unit of the static encoder's hidden layers (dead over the flat
+/// static descriptors `statics`, `[N, J * 9]`) and of the decoder MLP (dead over the codes
+/// `z`, `[N, latent]`) with fresh incoming weights (`N(0, std²)`, zero bias) and zero outgoing
+/// weights (the next layer's, or the basis rows for the last decoder layer). The output of the
+/// network on any input is unchanged by the repair; the revived units get gradients again.
+/// The static latent layer is left alone: its outgoing weights also carry `z_D`. Returns the
+/// number of units revived per layer, static encoder first.
 pub fn revive_dead_units(
     net: &mut ClothNet,
+    statics: Tensor<2>,
     z: Tensor<2>,
     std: f64,
 ) -> Result<Vec<usize>, ModelError> {
     let mut revived = Vec::new();
-    let mut x = z.detach();
-    let n = net.decoder.mlp.layers.len();
+    if let Some(enc) = net.static_encoder.as_mut() {
+        revived.extend(revive_mlp(&mut enc.layers, None, statics, std)?);
+    }
+    let decoder = &mut net.decoder;
+    revived.extend(revive_mlp(
+        &mut decoder.mlp.layers,
+        Some(&mut decoder.basis),
+        z,
+        std,
+    )?);
+    Ok(revived)
+}
+
+/// Revives the dead units of `layers` on the inputs `x`; the last layer's units are revived
+/// only when `after` (the layer they feed) is given.
+fn revive_mlp(
+    layers: &mut [Linear],
+    mut after: Option<&mut Linear>,
+    x: Tensor<2>,
+    std: f64,
+) -> Result<Vec<usize>, ModelError> {
+    let mut revived = Vec::new();
+    let mut x = x.detach();
+    let n = layers.len();
     for k in 0..n {
-        let h = relu(net.decoder.mlp.layers[k].forward(x.clone()));
-        let mask = dead_mask(&h)?;
+        let h = relu(layers[k].forward(x.clone()));
+        let mut mask = dead_mask(&h)?;
+        if k + 1 == n && after.is_none() {
+            mask.fill(false);
+        }
         let count = mask.iter().filter(|d| **d).count();
         revived.push(count);
         if count > 0 {
-            reinit_incoming(&mut net.decoder.mlp.layers[k], &mask, std);
-            match net.decoder.mlp.layers.get_mut(k + 1) {
-                Some(next) => zero_outgoing(next, &mask),
-                None => zero_outgoing(&mut net.decoder.basis, &mask),
+            reinit_incoming(&mut layers[k], &mask, std);
+            match (layers.get_mut(k + 1), after.as_deref_mut()) {
+                (Some(next), _) => zero_outgoing(next, &mask),
+                (None, Some(next)) => zero_outgoing(next, &mask),
+                (None, None) => {}
             }
         }
-        x = relu(net.decoder.mlp.layers[k].forward(x)).detach();
+        x = relu(layers[k].forward(x)).detach();
     }
     Ok(revived)
 }
@@ -367,8 +415,12 @@ mod tests {
         let z = net
             .latent_code(s.clone(), Some(d.clone()), 1.0)
             .reshape([20, 6]);
-        let revived = revive_dead_units(&mut net, z, 0.3).unwrap();
-        assert!(revived[1] >= 6, "{revived:?}");
+        let statics = s.clone().reshape([20, 27]);
+        let revived = revive_dead_units(&mut net, statics, z, 0.3).unwrap();
+        // Static encoder (hidden, then the latent: never revived), decoder layers 0 and 1.
+        assert_eq!(revived.len(), 4, "{revived:?}");
+        assert_eq!(revived[1], 0);
+        assert!(revived[3] >= 6, "{revived:?}");
         let after = net.forward(s.clone(), Some(d.clone()), 1.0);
         let diff = (after - before).abs().max().into_scalar::<f32>();
         assert!(diff < 1e-5, "output changed by {diff}");

@@ -32,9 +32,9 @@ pub struct MetricRecord {
     /// `| |w_u| - 1 | + | |w_v| - 1 |` on rest frames rotated onto `+Z`, unitless.
     #[serde(default)]
     pub paper_stretch: f64,
-    /// Dead ReLU units, percent 0..=100, of the worst layer on the path from the pose to the
-    /// garment (static encoder and decoder): units whose output is zero for every window of
-    /// the batch. Measured on validation passes only (0 on training steps).
+    /// Dead ReLU units, percent 0..=100, of the worst layer the stall remedy can revive (the
+    /// decoder and the static encoder's hidden layers): units whose output is zero for every
+    /// probe window. Measured on validation passes only (0 on training steps).
     #[serde(default)]
     pub dead_units_pct: f64,
 }

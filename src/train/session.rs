@@ -404,7 +404,7 @@ impl Session for NeuralSession {
             .map_err(|e| e.to_string())?;
         let activity = self.activity()?;
         let mut record = self.record(&metrics, loss);
-        record.dead_units_pct = activity.worst_static_path_pct();
+        record.dead_units_pct = activity.worst_revivable_pct();
         self.activity = Some(activity);
         Ok(record)
     }
@@ -415,10 +415,17 @@ impl Session for NeuralSession {
 
     fn revive_dead_units(&mut self) -> Result<usize, String> {
         let (statics, dynamics) = self.probe_descriptors();
+        let [b, t, j, c] = statics.dims();
+        let flat = statics.clone().detach().reshape([b * t, j * c]);
         let z = self.model.latent_code(statics, dynamics, 1.0).detach();
-        let [b, t, latent] = z.dims();
-        let revived = revive_dead_units(&mut self.model, z.reshape([b * t, latent]), self.init_std)
-            .map_err(|e| e.to_string())?;
+        let latent = z.dims()[2];
+        let revived = revive_dead_units(
+            &mut self.model,
+            flat,
+            z.reshape([b * t, latent]),
+            self.init_std,
+        )
+        .map_err(|e| e.to_string())?;
         Ok(revived.iter().sum())
     }
 
