@@ -7,7 +7,9 @@ use std::path::PathBuf;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use neural_cloth::train::compare::{CompareOptions, CompareReport, MotionComparison, compare};
+use neural_cloth::train::compare::{
+    CompareOptions, CompareReport, HemPair, MotionComparison, compare,
+};
 use neural_cloth::train::load_trained;
 
 /// Arguments of `compare`.
@@ -161,42 +163,23 @@ fn motion_table(s: &mut String, m: &MotionComparison) {
         row(label, [Some(a.all_mm), a.still_mm, a.moving_mm], 1);
     }
     if let Some(hem) = &r.hem {
-        row(
-            "hem radius network, m",
-            [
-                None,
-                hem.still.map(|h| h.network_m),
-                hem.moving.map(|h| h.network_m),
-            ],
-            3,
-        );
-        row(
-            "hem radius simulator, m",
-            [
-                None,
-                hem.still.map(|h| h.simulator_m),
-                hem.moving.map(|h| h.simulator_m),
-            ],
-            3,
-        );
-        row(
-            "hem radius network w=0, m",
-            [
-                None,
-                hem.still.map(|h| h.network_static_m),
-                hem.moving.map(|h| h.network_static_m),
-            ],
-            3,
-        );
-        row(
-            "hem radius sim static, m",
-            [
-                None,
-                hem.still.map(|h| h.simulator_static_m),
-                hem.moving.map(|h| h.simulator_static_m),
-            ],
-            3,
-        );
+        let radii: [(&str, fn(&HemPair) -> f64); 4] = [
+            ("hem radius network, m", |h| h.network_m),
+            ("hem radius simulator, m", |h| h.simulator_m),
+            ("hem radius network w=0, m", |h| h.network_static_m),
+            ("hem radius sim static, m", |h| h.simulator_static_m),
+        ];
+        for (label, pick) in radii {
+            row(
+                label,
+                [
+                    None,
+                    hem.still.as_ref().map(pick),
+                    hem.moving.as_ref().map(pick),
+                ],
+                3,
+            );
+        }
     }
     let _ = writeln!(s, "  {:<28}{:>12}{:>12}", "metrics", "network", "simulator");
     let (net, sim) = (m.metrics.network.named(), m.metrics.simulator.named());

@@ -71,8 +71,8 @@ pub struct TrainConfig {
     /// (measured on the skirt: still hem radius 0.199 m against 0.220 m without, simulator
     /// 0.136 m; docs/TRAINING.md).
     pub still_fraction: f32,
-    /// A validation pass with at least this percentage of dead units in one layer of the
-    /// static path triggers the stall remedy (revive the dead units); 1..=100, default 75.
+    /// A validation pass with at least this percentage of dead units in one revivable layer
+    /// (decoder, static hidden layers) triggers the stall remedy (revive the dead units); 1..=100, default 75.
     pub dead_limit_pct: f64,
 }
 

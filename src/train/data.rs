@@ -170,6 +170,23 @@ impl Dataset {
         self.batch_with_still(windows, 0, frames, skin)
     }
 
+    /// Appends the static and dynamic descriptors of `windows` (each `frames` long) to the two
+    /// outputs, without the skinning matrices (for probing the network's units).
+    pub fn append_descriptors(
+        &self,
+        windows: &[(usize, usize)],
+        frames: usize,
+        static_out: &mut Vec<f32>,
+        dynamic_out: &mut Vec<f32>,
+    ) {
+        for &(mi, last) in windows {
+            if let Some(m) = self.motions.get(mi) {
+                m.descriptors
+                    .append_window(last, frames, static_out, dynamic_out);
+            }
+        }
+    }
+
     /// Like [`Self::batch`], but the first `still` windows are still windows: the pose of their
     /// last frame held for the whole window (zero dynamic descriptors, the same skinning for
     /// the three predicted frames). They teach the static branch the quasi-static drape of

@@ -149,7 +149,8 @@ pub trait Session: Send {
 pub const FROZEN_PASSES: usize = 3;
 
 /// Why the newest validation pass of `validation` shows a run that stopped learning, if it
-/// does: a layer on the static path with at least `dead_limit_pct` % dead units, or the last
+/// does: a layer the remedy can revive with at least `dead_limit_pct` % dead units (the
+/// record's `dead_units_pct`), or the last
 /// [`FROZEN_PASSES`] passes (all after step `since`) with bit-identical losses.
 pub fn stall_reason(
     validation: &[MetricRecord],
@@ -200,8 +201,8 @@ pub struct LoopConfig {
     pub max_rollbacks: u32,
     /// Warnings found while preparing the run, sent right after `Started`.
     pub warnings: Vec<String>,
-    /// A validation pass with this percentage of dead units in one layer of the static path
-    /// (or [`FROZEN_PASSES`] bit-identical passes) triggers the stall remedy; 0..=100.
+    /// A validation pass with this percentage of dead units in one revivable layer (or
+    /// [`FROZEN_PASSES`] bit-identical passes) triggers the stall remedy; 0..=100.
     pub dead_limit_pct: f64,
 }
 

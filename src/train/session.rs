@@ -247,25 +247,17 @@ impl NeuralSession {
     /// shows nearly one pose: half of any layer would look dead on it alone).
     fn probe_descriptors(&self) -> (Tensor<4>, Option<Tensor<4>>) {
         let frames = self.window_frames();
-        let mut probe = self.train.batch(
-            &self.train.even_windows(VALIDATION_WINDOWS),
-            frames,
-            &self.garment.skin,
-        );
-        if !self.validation.is_empty() {
-            let v = self.validation.batch(
-                &self.validation.even_windows(VALIDATION_WINDOWS),
-                frames,
-                &self.garment.skin,
-            );
-            probe.size += v.size;
-            probe.static_desc.extend(v.static_desc);
-            probe.dynamic_desc.extend(v.dynamic_desc);
+        let (mut statics, mut dynamics) = (Vec::new(), Vec::new());
+        let mut size = 0;
+        for data in [&self.train, &self.validation] {
+            let windows = data.even_windows(VALIDATION_WINDOWS);
+            size += windows.len();
+            data.append_descriptors(&windows, frames, &mut statics, &mut dynamics);
         }
-        let (b, j) = (probe.size, self.train.input_joints);
-        let statics = self.tensor4(probe.static_desc, [b, frames, j, 9]);
+        let j = self.train.input_joints;
+        let statics = self.tensor4(statics, [size, frames, j, 9]);
         let dynamics = (self.model.kind() != crate::model::EncoderKind::StaticOnly)
-            .then(|| self.tensor4(probe.dynamic_desc, [b, frames, j, 12]));
+            .then(|| self.tensor4(dynamics, [size, frames, j, 12]));
         (statics, dynamics)
     }
 
