@@ -163,7 +163,8 @@ fn motion_table(s: &mut String, m: &MotionComparison) {
         row(label, [Some(a.all_mm), a.still_mm, a.moving_mm], 1);
     }
     if let Some(hem) = &r.hem {
-        let radii: [(&str, fn(&HemPair) -> f64); 4] = [
+        type Radius = (&'static str, fn(&HemPair) -> f64);
+        let radii: [Radius; 4] = [
             ("hem radius network, m", |h| h.network_m),
             ("hem radius simulator, m", |h| h.simulator_m),
             ("hem radius network w=0, m", |h| h.network_static_m),
