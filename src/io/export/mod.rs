@@ -1,6 +1,7 @@
-//! Exporters of baked sequences: PC2 and MDD point caches, OBJ sequences and glTF with morph
-//! targets. Every writer is atomic (temporary file + rename) and streams frames where the
-//! format allows, so a long bake never needs all frames in memory.
+//! Exporters of baked sequences: PC2 and MDD point caches, OBJ sequences, USD (`.usda`) point
+//! caches and glTF with morph targets, and the presets that put coordinates into a target
+//! tool's convention. Every writer is atomic (temporary file + rename) and streams frames where
+//! the format allows, so a long bake never needs all frames in memory.
 
 pub mod atomic;
 pub mod gltf;
@@ -8,11 +9,16 @@ pub mod mdd;
 pub mod obj_seq;
 pub mod pc2;
 pub mod pca;
+pub mod preset;
+pub mod usd;
+pub mod usda_text;
 
 pub use gltf::{BakedSequence, GltfExportOptions, GltfExportReport, write_glb};
 pub use mdd::{MddCache, MddWriter, read_mdd};
 pub use obj_seq::ObjSequenceWriter;
 pub use pc2::{Pc2Cache, Pc2Writer, read_pc2};
+pub use preset::{Convention, Preset, UnknownPreset, UpAxis};
+pub use usd::{UsdMesh, UsdStage, UsdWriter};
 
 use std::path::{Path, PathBuf};
 

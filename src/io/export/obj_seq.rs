@@ -18,12 +18,23 @@ pub struct ObjSequenceWriter {
     uvs: Option<Vec<[f32; 2]>>,
     points: usize,
     written: usize,
+    first_number: usize,
 }
 
 impl ObjSequenceWriter {
     /// Starts a sequence in the folder `dir` (created; it must not exist or be empty), naming
-    /// files `<stem>_NNNN.obj` and reusing `topology`'s faces and UVs for every frame.
+    /// files `<stem>_NNNN.obj` from 1 and reusing `topology`'s faces and UVs for every frame.
     pub fn create(dir: &Path, stem: &str, topology: &TriMesh) -> Result<Self, ExportError> {
+        Self::create_numbered(dir, stem, topology, 1)
+    }
+
+    /// Like [`ObjSequenceWriter::create`], numbering the first file `first_number`.
+    pub fn create_numbered(
+        dir: &Path,
+        stem: &str,
+        topology: &TriMesh,
+        first_number: usize,
+    ) -> Result<Self, ExportError> {
         if dir.exists()
             && std::fs::read_dir(dir)
                 .map(|mut d| d.next().is_some())
@@ -45,27 +56,33 @@ impl ObjSequenceWriter {
             uvs,
             points: topology.positions.len(),
             written: 0,
+            first_number,
         })
     }
 
     /// File name of frame `index` (0-based index, 1-based numbering in the name).
     pub fn file_name(stem: &str, index: usize) -> String {
-        format!("{stem}_{:04}.obj", index + 1)
+        Self::numbered_name(stem, index + 1)
+    }
+
+    /// File name of the frame numbered `number`.
+    pub fn numbered_name(stem: &str, number: usize) -> String {
+        format!("{stem}_{number:04}.obj")
     }
 
     /// Writes the next frame.
     pub fn write_frame(&mut self, positions: &[Vec3]) -> Result<(), ExportError> {
-        let path = self
-            .dir
-            .temp_path()
-            .join(Self::file_name(&self.stem, self.written));
+        let path = self.dir.temp_path().join(Self::numbered_name(
+            &self.stem,
+            self.first_number + self.written,
+        ));
         check_frame(positions, self.points, &path)?;
         let mut f = AtomicFile::create(&path)?;
         let text = obj_text(
             positions,
             &self.faces,
             self.uvs.as_deref(),
-            &format!("{} frame {}", self.stem, self.written + 1),
+            &format!("{} frame {}", self.stem, self.first_number + self.written),
         );
         f.write_all(text.as_bytes())
             .map_err(|e| ExportError::io(e, &path))?;
