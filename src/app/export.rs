@@ -1,11 +1,13 @@
-//! The export dialog's settings and the hook that bakes and writes a sequence (the same baking
-//! the CLI's `bake` runs; the app only collects the request and shows the result).
+//! The export dialog's settings, its size estimate and the hook that bakes and writes a
+//! sequence (the same baking the CLI's `bake` runs; the app only collects the request, runs it
+//! on a background thread and shows progress and the result).
 
 use std::path::PathBuf;
 use std::sync::Arc;
 
+use crate::bake::{BakeFormat, BakeOptions, Preset, frame_range};
 use crate::model::InferenceWeights;
-use crate::scene::{Avatar, Garment};
+use crate::scene::{Avatar, Garment, Motion};
 
 /// Output formats of a baked sequence.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -19,12 +21,15 @@ pub enum ExportFormat {
     Mdd,
     /// One OBJ file per frame.
     ObjSequence,
+    /// USD stage (`.usda`) with time-sampled points of the garment and the body.
+    Usd,
 }
 
 impl ExportFormat {
     /// All formats in menu order.
-    pub const ALL: [ExportFormat; 4] = [
+    pub const ALL: [ExportFormat; 5] = [
         ExportFormat::Glb,
+        ExportFormat::Usd,
         ExportFormat::Pc2,
         ExportFormat::Mdd,
         ExportFormat::ObjSequence,
@@ -37,7 +42,34 @@ impl ExportFormat {
             Self::Pc2 => "PC2 point cache",
             Self::Mdd => "MDD point cache",
             Self::ObjSequence => "OBJ sequence",
+            Self::Usd => "USD point cache (.usda)",
         }
+    }
+
+    /// The bake layer's format.
+    pub fn bake_format(self) -> BakeFormat {
+        match self {
+            Self::Glb => BakeFormat::Gltf,
+            Self::Pc2 => BakeFormat::Pc2,
+            Self::Mdd => BakeFormat::Mdd,
+            Self::ObjSequence => BakeFormat::Obj,
+            Self::Usd => BakeFormat::Usd,
+        }
+    }
+
+    /// Whether a destination preset applies (every format but glTF).
+    pub fn takes_preset(self) -> bool {
+        self.bake_format().takes_preset()
+    }
+
+    /// `path` with this format's extension (the OBJ sequence, a folder, gets none).
+    pub fn with_extension(self, path: &str) -> String {
+        let p = std::path::Path::new(path.trim());
+        let ext = match self {
+            Self::ObjSequence => "",
+            f => f.extension(),
+        };
+        p.with_extension(ext).display().to_string()
     }
 
     /// File extension (for the OBJ sequence, of each frame file).
@@ -47,6 +79,7 @@ impl ExportFormat {
             Self::Pc2 => "pc2",
             Self::Mdd => "mdd",
             Self::ObjSequence => "obj",
+            Self::Usd => "usda",
         }
     }
 }
@@ -62,6 +95,8 @@ pub struct ExportSettings {
     pub path: String,
     /// Motion to bake (index into the avatar's motions).
     pub motion: usize,
+    /// Destination tool (None: the program's own convention); ignored for glTF.
+    pub preset: Option<Preset>,
     /// Outcome of the last export: a summary or an error.
     pub last_result: Option<Result<String, String>>,
 }
@@ -73,6 +108,7 @@ impl Default for ExportSettings {
             format: ExportFormat::Glb,
             path: "export/garment.glb".into(),
             motion: 0,
+            preset: None,
             last_result: None,
         }
     }
@@ -97,10 +133,72 @@ pub struct ExportRequest {
     pub format: ExportFormat,
     /// Output path.
     pub path: PathBuf,
+    /// Destination tool (None: the program's own convention).
+    pub preset: Option<Preset>,
 }
 
 /// Bakes and writes sequences; returns a one-line summary or an error for the UI.
-pub trait Exporter: Send {
-    /// Runs the export (blocking; the app calls it from the export dialog).
-    fn export(&mut self, request: ExportRequest) -> Result<String, String>;
+pub trait Exporter: Send + Sync {
+    /// Runs the export (blocking; the app calls it on a background thread).
+    /// `progress(done, total)` is called after each frame; returning false cancels the bake,
+    /// which then removes its partial output.
+    fn export(
+        &self,
+        request: ExportRequest,
+        progress: &mut dyn FnMut(usize, usize) -> bool,
+    ) -> Result<String, String>;
+}
+
+/// What an export will write, shown before it starts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExportEstimate {
+    /// Output frames.
+    pub frames: usize,
+    /// Approximate size of all outputs in bytes.
+    pub bytes: u64,
+}
+
+impl ExportEstimate {
+    /// Frames and size of baking `motion` at `fps` with the app's settings (the body is
+    /// always included); an error when the frame rate or the motion gives no frame.
+    pub fn of(
+        format: ExportFormat,
+        motion: &Motion,
+        fps: f32,
+        garment: &Garment,
+        avatar: &Avatar,
+    ) -> Result<Self, String> {
+        let options = BakeOptions {
+            fps,
+            ..Default::default()
+        };
+        let (start, end) = frame_range(motion, &options).map_err(|e| e.to_string())?;
+        let frames = end - start;
+        let f = format.bake_format();
+        let garment_bytes =
+            f.estimate_bytes(frames, garment.vertex_count(), garment.mesh.faces.len());
+        let body = &avatar.bind_mesh;
+        let body_bytes = match f {
+            // The glTF body is one static skinned mesh, not a per-frame cache.
+            BakeFormat::Gltf => body.positions.len() as u64 * 60 + body.faces.len() as u64 * 12,
+            _ => f.estimate_bytes(frames, body.positions.len(), body.faces.len()),
+        };
+        Ok(Self {
+            frames,
+            bytes: garment_bytes + body_bytes,
+        })
+    }
+
+    /// "N frames, about S" with S in kB, MB or GB.
+    pub fn summary(&self) -> String {
+        let b = self.bytes as f64;
+        let size = if b < 1e6 {
+            format!("{:.0} kB", b / 1e3)
+        } else if b < 1e9 {
+            format!("{:.1} MB", b / 1e6)
+        } else {
+            format!("{:.2} GB", b / 1e9)
+        };
+        format!("{} frames, about {size}", self.frames)
+    }
 }

@@ -12,6 +12,7 @@
 pub mod background;
 pub mod cost_panel;
 pub mod export;
+pub mod export_dialog;
 pub mod frame_builder;
 pub mod loading;
 pub mod metrics;
@@ -64,7 +65,9 @@ pub struct NeuralClothApp {
     /// The accuracy/time experiment of the Cost panel.
     pub cost: cost_panel::CostPanel,
     /// Exporter behind the export dialog.
-    exporter: Option<Box<dyn export::Exporter>>,
+    exporter: Option<Arc<dyn export::Exporter>>,
+    /// The export running on its own thread.
+    export_job: export_dialog::ExportJob,
     /// Scene revision the camera was framed for.
     framed_revision: u64,
     /// Repaint request handed to the trainer thread.
@@ -93,7 +96,8 @@ impl NeuralClothApp {
             viewport: Viewport::new(render_state),
             show_curves: true,
             cost: cost_panel::CostPanel::default(),
-            exporter: options.exporter,
+            exporter: options.exporter.map(Arc::from),
+            export_job: Default::default(),
             framed_revision: 0,
             notify: notify.clone(),
         };

@@ -1,12 +1,10 @@
-//! The timeline row (play/pause, scrubbing, speed, the `w` slider), the menu bar (project
-//! files, recent files, export) and the export dialog.
+//! The timeline row (play/pause, scrubbing, speed, the `w` slider) and the menu bar (project
+//! files, recent files, export; the export dialog is [`super::export_dialog`]).
 
 use std::path::PathBuf;
 
 use super::NeuralClothApp;
-use super::export::{ExportFormat, ExportRequest};
 use super::playback::{MAX_SPEED, MIN_SPEED};
-use super::state::Level;
 
 /// Extension offered for project files.
 pub const PROJECT_EXTENSION: &str = "toml";
@@ -138,105 +136,5 @@ impl NeuralClothApp {
         self.state.training.reset();
         self.state
             .open_project(path, || super::default_scene().ok())
-    }
-
-    /// The export dialog.
-    pub fn export_ui(&mut self, ui: &mut egui::Ui) {
-        if !self.state.export.open {
-            return;
-        }
-        let mut open = true;
-        let motions: Vec<String> = self
-            .state
-            .scene
-            .avatar
-            .motions
-            .iter()
-            .map(|m| m.name.clone())
-            .collect();
-        let mut run = false;
-        egui::Window::new("Export baked sequence")
-            .open(&mut open)
-            .collapsible(false)
-            .show(ui.ctx(), |ui| {
-                let settings = &mut self.state.export;
-                egui::ComboBox::from_label("format")
-                    .selected_text(settings.format.label())
-                    .show_ui(ui, |ui| {
-                        for f in ExportFormat::ALL {
-                            ui.selectable_value(&mut settings.format, f, f.label());
-                        }
-                    });
-                let motion_name = motions
-                    .get(settings.motion)
-                    .cloned()
-                    .unwrap_or_else(|| "none".into());
-                egui::ComboBox::from_label("motion")
-                    .selected_text(motion_name)
-                    .show_ui(ui, |ui| {
-                        for (k, name) in motions.iter().enumerate() {
-                            ui.selectable_value(&mut settings.motion, k, name);
-                        }
-                    });
-                ui.horizontal(|ui| {
-                    ui.label("path");
-                    ui.text_edit_singleline(&mut settings.path);
-                    if ui.button("Browse…").clicked() {
-                        let ext = settings.format.extension();
-                        if let Some(p) = rfd::FileDialog::new()
-                            .add_filter(settings.format.label(), &[ext])
-                            .save_file()
-                        {
-                            settings.path = p.display().to_string();
-                        }
-                    }
-                });
-                ui.label(format!("w = {:.2} (from the timeline)", self.state.w));
-                run = ui.button("Export").clicked();
-                match &settings.last_result {
-                    Some(Ok(s)) => {
-                        ui.label(s);
-                    }
-                    Some(Err(e)) => {
-                        ui.colored_label(egui::Color32::from_rgb(255, 100, 90), e);
-                    }
-                    None => {}
-                }
-            });
-        self.state.export.open = open;
-        if run {
-            self.run_export();
-        }
-    }
-
-    /// Builds the export request from the state and hands it to the exporter.
-    fn run_export(&mut self) {
-        let settings = self.state.export.clone();
-        let result = match (&self.state.scene.garment, self.exporter.as_mut()) {
-            (None, _) => Err("load a garment first".to_string()),
-            (_, None) => Err("export is not available in this build".to_string()),
-            (Some(garment), Some(exporter)) => exporter.export(ExportRequest {
-                avatar: self.state.scene.avatar.clone(),
-                garment: garment.clone(),
-                motion: settings.motion,
-                weights: self
-                    .state
-                    .training
-                    .latest_weights
-                    .as_ref()
-                    .map(|(_, w)| w.clone()),
-                w: self.state.w,
-                fps: self.state.train_config.fps,
-                format: settings.format,
-                path: PathBuf::from(settings.path.trim()),
-            }),
-        };
-        match &result {
-            Ok(s) => self.state.message(Level::Info, s.clone()),
-            Err(e) => self
-                .state
-                .message(Level::Error, format!("export failed: {e}")),
-        }
-        self.state.export.last_result = Some(result);
     }
 }

@@ -1,6 +1,7 @@
 //! Bake layer: runs a trained model (or the reference simulator) over a motion and writes the
-//! garment (and optionally the body and the rest-space shapes) as PC2, MDD, an OBJ sequence or
-//! a glTF with morph targets. Frames stream straight into the writers where the format allows
+//! garment (and optionally the body and the rest-space shapes) as PC2, MDD, an OBJ sequence,
+//! a USD point cache or a glTF with morph targets, optionally in a destination tool's
+//! convention (a [`Preset`]). Frames stream straight into the writers where the format allows
 //! (everything but glTF, whose morph basis needs the whole sequence), every writer is atomic,
 //! and a failed bake leaves no file behind.
 //!
@@ -8,7 +9,9 @@
 //! step); output frames at another rate are interpolated linearly between model frames.
 
 mod frames;
+mod sink;
 
+pub use crate::io::export::Preset;
 pub use frames::{FrameSource, ModelSource, SimulatorSource};
 
 use std::path::{Path, PathBuf};
@@ -16,10 +19,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::geometry::Vec3;
-use crate::io::export::{
-    BakedSequence, ExportError, GltfExportOptions, MddWriter, ObjSequenceWriter, Pc2Writer,
-    write_glb,
-};
+use crate::io::export::{BakedSequence, Convention, ExportError, GltfExportOptions, write_glb};
 use crate::scene::{Avatar, Garment, Motion, Pose};
 
 /// Output formats.
@@ -34,15 +34,18 @@ pub enum BakeFormat {
     Obj,
     /// GLB with skeleton, animation, skinned garment and morph targets.
     Gltf,
+    /// USD text stage (`.usda`): the garment (and body) as meshes with time-sampled points.
+    Usd,
 }
 
 impl BakeFormat {
     /// Every format, for menus.
-    pub const ALL: [BakeFormat; 4] = [
+    pub const ALL: [BakeFormat; 5] = [
         BakeFormat::Pc2,
         BakeFormat::Mdd,
         BakeFormat::Obj,
         BakeFormat::Gltf,
+        BakeFormat::Usd,
     ];
 
     /// The usual file extension (the OBJ sequence is a folder).
@@ -52,17 +55,38 @@ impl BakeFormat {
             BakeFormat::Mdd => "mdd",
             BakeFormat::Obj => "",
             BakeFormat::Gltf => "glb",
+            BakeFormat::Usd => "usda",
         }
     }
 
-    /// Parses a format name (`pc2`, `mdd`, `obj`, `gltf`/`glb`).
+    /// Parses a format name (`pc2`, `mdd`, `obj`, `gltf`/`glb`, `usd`/`usda`).
     pub fn parse(name: &str) -> Option<Self> {
         match name.to_ascii_lowercase().as_str() {
             "pc2" => Some(Self::Pc2),
             "mdd" => Some(Self::Mdd),
             "obj" => Some(Self::Obj),
             "gltf" | "glb" => Some(Self::Gltf),
+            "usd" | "usda" => Some(Self::Usd),
             _ => None,
+        }
+    }
+
+    /// Whether a [`Preset`] applies: glTF is defined as Y up, metres, right-handed, and every
+    /// glTF importer converts to its own convention.
+    pub fn takes_preset(self) -> bool {
+        self != BakeFormat::Gltf
+    }
+
+    /// Rough size in bytes of the garment output (`faces` triangles, `points` vertices per
+    /// frame), for showing before a bake; USD text is estimated at 36 bytes a point.
+    pub fn estimate_bytes(self, frames: usize, points: usize, faces: usize) -> u64 {
+        let (frames, points, faces) = (frames as u64, points as u64, faces as u64);
+        match self {
+            BakeFormat::Pc2 => 32 + frames * points * 12,
+            BakeFormat::Mdd => 8 + frames * (4 + points * 12),
+            BakeFormat::Obj => frames * (points * 36 + faces * 24),
+            BakeFormat::Usd => 1024 + faces * 24 + points * 16 + frames * (points * 36 + 80),
+            BakeFormat::Gltf => points * 60 + faces * 12 + frames * 64,
         }
     }
 }
@@ -83,12 +107,30 @@ pub struct BakeOptions {
     pub end_frame: Option<usize>,
     /// Dynamic weight `w` in [0, 2] (1 = trained behaviour); neural model only.
     pub w: f32,
-    /// Also write the body (PC2/MDD/OBJ: a second file; glTF: the body mesh). Default false.
+    /// Also write the body (PC2/MDD/OBJ: a second file; glTF: the body mesh; USD: a second
+    /// mesh in the stage). Default false.
     pub include_body: bool,
-    /// Also write the unskinned rest-space garment (template + offsets), PC2/MDD/OBJ only.
+    /// Also write the unskinned rest-space garment (template + offsets) as a sibling file;
+    /// PC2/MDD/OBJ/USD only.
     pub rest_shapes: bool,
     /// Morph targets of the glTF export, 0..=64, default 16.
     pub morph_targets: usize,
+    /// Destination tool whose axis, units, handedness and frame numbering to write in; None
+    /// (the default) keeps the program's own (Y up, metres, right-handed, frames from 0).
+    /// Not for glTF.
+    pub preset: Option<Preset>,
+}
+
+impl BakeOptions {
+    /// The convention the outputs are written in: the preset's, kept right-handed for OBJ and
+    /// USD (whose importers mirror into a left-handed space themselves).
+    pub fn convention(&self) -> Convention {
+        let c = self.preset.map_or(Convention::NATIVE, Preset::convention);
+        match self.format {
+            BakeFormat::Obj | BakeFormat::Usd => c.right_handed(),
+            _ => c,
+        }
+    }
 }
 
 impl Default for BakeOptions {
@@ -103,6 +145,7 @@ impl Default for BakeOptions {
             include_body: false,
             rest_shapes: false,
             morph_targets: 16,
+            preset: None,
         }
     }
 }
@@ -166,6 +209,12 @@ pub fn check_options(options: &BakeOptions) -> Result<(), BakeError> {
             options.w
         )));
     }
+    if let (Some(preset), false) = (options.preset, options.format.takes_preset()) {
+        return Err(BakeError::Invalid(format!(
+            "the {preset} preset does not apply to glTF: glTF is always Y up, metres, \
+             right-handed and every importer converts it (use usd, pc2, mdd or obj)"
+        )));
+    }
     if options.morph_targets > 64 {
         return Err(BakeError::Invalid(format!(
             "{} morph targets (at most 64)",
@@ -197,52 +246,6 @@ pub fn sibling_path(out: &Path, tag: &str) -> PathBuf {
         None => format!("{stem}.{tag}"),
     };
     out.with_file_name(name)
-}
-
-enum Sink {
-    Pc2(Pc2Writer),
-    Mdd(MddWriter),
-    Obj(ObjSequenceWriter),
-}
-
-impl Sink {
-    fn create(
-        format: BakeFormat,
-        path: &Path,
-        frames: usize,
-        start: usize,
-        fps: f32,
-        topology: &crate::geometry::TriMesh,
-    ) -> Result<Self, ExportError> {
-        let points = topology.positions.len();
-        Ok(match format {
-            BakeFormat::Pc2 => Sink::Pc2(Pc2Writer::create(path, points, start as f32, 1.0)?),
-            BakeFormat::Mdd => Sink::Mdd(MddWriter::create(path, frames, points, fps)?),
-            BakeFormat::Obj | BakeFormat::Gltf => {
-                let stem = path
-                    .file_stem()
-                    .map(|s| s.to_string_lossy().into_owned())
-                    .unwrap_or_else(|| "frame".into());
-                Sink::Obj(ObjSequenceWriter::create(path, &stem, topology)?)
-            }
-        })
-    }
-
-    fn write(&mut self, positions: &[Vec3]) -> Result<(), ExportError> {
-        match self {
-            Sink::Pc2(w) => w.write_frame(positions),
-            Sink::Mdd(w) => w.write_frame(positions),
-            Sink::Obj(w) => w.write_frame(positions),
-        }
-    }
-
-    fn finish(self) -> Result<PathBuf, ExportError> {
-        match self {
-            Sink::Pc2(w) => w.finish(),
-            Sink::Mdd(w) => w.finish(),
-            Sink::Obj(w) => w.finish(),
-        }
-    }
 }
 
 /// Bakes `motion` with `source` into the files of `options`. `progress(done, total)` is called
@@ -298,57 +301,20 @@ pub fn bake(
             max_error_m: Some(report.max_error_m),
         });
     }
-    let mut garment_sink = Sink::create(
-        options.format,
-        &options.out,
-        frames,
-        start,
-        options.fps,
-        &garment.mesh,
-    )?;
-    let mut body_sink = match options.include_body {
-        true => Some(Sink::create(
-            options.format,
-            &sibling_path(&options.out, "body"),
-            frames,
-            start,
-            options.fps,
-            &avatar.bind_mesh,
-        )?),
-        false => None,
-    };
-    let mut rest_sink = match options.rest_shapes {
-        true => Some(Sink::create(
-            options.format,
-            &sibling_path(&options.out, "rest"),
-            frames,
-            start,
-            options.fps,
-            &garment.mesh,
-        )?),
-        false => None,
-    };
+    let mut sinks = sink::Sinks::create(options, avatar, garment, frames, start)?;
     for (k, f) in (start..end).enumerate() {
         let t = f as f32 / options.fps;
         let out = sampler.at(t)?;
-        garment_sink.write(&out.garment)?;
-        if let Some(s) = body_sink.as_mut() {
-            s.write(&avatar.pose_vertices(&motion.sample(t)))?;
-        }
-        if let Some(s) = rest_sink.as_mut() {
-            s.write(&out.rest)?;
-        }
+        let body = match sinks.wants_body() {
+            true => Some(avatar.pose_vertices(&motion.sample(t))),
+            false => None,
+        };
+        sinks.write(&out.garment, body.as_deref(), &out.rest)?;
         if !progress(k + 1, frames) {
             return Err(BakeError::Cancelled);
         }
     }
-    let mut outputs = vec![garment_sink.finish()?];
-    if let Some(s) = body_sink {
-        outputs.push(s.finish()?);
-    }
-    if let Some(s) = rest_sink {
-        outputs.push(s.finish()?);
-    }
+    let outputs = sinks.finish()?;
     Ok(BakeReport {
         outputs,
         frames,

@@ -77,11 +77,11 @@ pub struct RealExporter;
 
 impl neural_cloth::app::export::Exporter for RealExporter {
     fn export(
-        &mut self,
+        &self,
         request: neural_cloth::app::export::ExportRequest,
+        progress: &mut dyn FnMut(usize, usize) -> bool,
     ) -> Result<String, String> {
-        use neural_cloth::app::export::ExportFormat;
-        use neural_cloth::bake::{BakeFormat, BakeOptions, ModelSource, bake};
+        use neural_cloth::bake::{BakeOptions, ModelSource, bake};
         use neural_cloth::model::{InferenceEngine, InferenceOptions};
         let weights = request
             .weights
@@ -92,12 +92,7 @@ impl neural_cloth::app::export::Exporter for RealExporter {
             .get(request.motion)
             .ok_or("no such motion")?
             .clone();
-        let format = match request.format {
-            ExportFormat::Glb => BakeFormat::Gltf,
-            ExportFormat::Pc2 => BakeFormat::Pc2,
-            ExportFormat::Mdd => BakeFormat::Mdd,
-            ExportFormat::ObjSequence => BakeFormat::Obj,
-        };
+        let format = request.format.bake_format();
         // The model runs at the rate it was trained at; the bake resamples to `request.fps`.
         let train_fps = neural_cloth::train::TrainConfig::default().fps;
         let engine = InferenceEngine::from_scene(
@@ -119,6 +114,7 @@ impl neural_cloth::app::export::Exporter for RealExporter {
             fps: request.fps,
             w: request.w,
             include_body: true,
+            preset: request.preset,
             ..Default::default()
         };
         let report = bake(
@@ -127,7 +123,7 @@ impl neural_cloth::app::export::Exporter for RealExporter {
             &motion,
             &mut source,
             &options,
-            &mut |_, _| true,
+            progress,
         )
         .map_err(|e| e.to_string())?;
         let mut line = format!(

@@ -1,5 +1,6 @@
 //! `neural-cloth bake RUN` (a trained model) and `neural-cloth simulate` (the reference
-//! simulator): bake a motion into PC2, MDD, an OBJ sequence or glTF, with a progress bar.
+//! simulator): bake a motion into PC2, MDD, an OBJ sequence, USD or glTF, optionally in a
+//! destination tool's convention (`--preset`), with a progress bar.
 
 use std::path::{Path, PathBuf};
 
@@ -7,7 +8,7 @@ use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use neural_cloth::bake::{
-    BakeFormat, BakeOptions, FrameSource, ModelSource, SimulatorSource, bake,
+    BakeFormat, BakeOptions, FrameSource, ModelSource, Preset, SimulatorSource, bake,
 };
 use neural_cloth::io::Units;
 use neural_cloth::io::scene_loader::load_motions;
@@ -37,7 +38,12 @@ pub struct OutputArgs {
     /// Output file (a folder for OBJ sequences); default: <motion>.<format> here.
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Also write the body (a second cache, or the body mesh in glTF).
+    /// Write for a destination tool: blender, unreal, unity, maya or houdini (axis, units,
+    /// handedness, frame numbering; see the README's export table). Default: Y up, metres,
+    /// right-handed, frames from 0. Not for glTF.
+    #[arg(long, value_parser = parse_preset)]
+    pub preset: Option<Preset>,
+    /// Also write the body (a second cache, the body mesh in glTF, a second mesh in USD).
     #[arg(long)]
     pub body: bool,
     /// Also write the unskinned rest-space garment shapes.
@@ -49,7 +55,11 @@ pub struct OutputArgs {
 }
 
 fn parse_format(s: &str) -> Result<BakeFormat, String> {
-    BakeFormat::parse(s).ok_or_else(|| format!("unknown format '{s}' (pc2, mdd, obj, gltf)"))
+    BakeFormat::parse(s).ok_or_else(|| format!("unknown format '{s}' (pc2, mdd, obj, gltf, usd)"))
+}
+
+fn parse_preset(s: &str) -> Result<Preset, String> {
+    Preset::parse(s).map_err(|e| e.to_string())
 }
 
 /// Arguments of `bake`.
@@ -121,6 +131,7 @@ fn options(out: &OutputArgs, motion: &Motion, w: f32) -> BakeOptions {
         include_body: out.body,
         rest_shapes: out.rest,
         morph_targets: out.targets,
+        preset: out.preset,
     }
 }
 

@@ -1,0 +1,250 @@
+//! The export dialog: format, destination preset, motion and path; the frame count and an
+//! estimated size before writing; the bake on the named thread `neural-cloth-export` with a
+//! progress bar and Cancel. A failed or cancelled export leaves no file and the app runs on.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use super::NeuralClothApp;
+use super::background::{BackgroundJob, poll_job};
+use super::export::{ExportEstimate, ExportFormat, ExportRequest, Exporter};
+use super::state::Level;
+use crate::bake::Preset;
+
+/// The running export, if any.
+#[derive(Default)]
+pub struct ExportJob {
+    job: Option<BackgroundJob<(usize, usize), String>>,
+}
+
+impl ExportJob {
+    /// Starts `request` on its own thread; `notify` requests a repaint as frames are written.
+    pub fn start(
+        &mut self,
+        exporter: Arc<dyn Exporter>,
+        request: ExportRequest,
+        notify: Arc<dyn Fn() + Send + Sync>,
+    ) -> Result<(), String> {
+        if self.job.is_some() {
+            return Err("an export is already running".into());
+        }
+        self.job = Some(BackgroundJob::spawn(
+            "neural-cloth-export",
+            (0, 0),
+            notify,
+            move |reporter| {
+                exporter.export(request, &mut |done, total| reporter.report((done, total)))
+            },
+        )?);
+        Ok(())
+    }
+
+    /// True while an export runs.
+    pub fn is_running(&self) -> bool {
+        self.job.is_some()
+    }
+
+    /// Asks the export to stop after the current frame (its partial files are removed).
+    pub fn cancel(&self) {
+        if let Some(job) = &self.job {
+            job.cancel();
+        }
+    }
+
+    /// Frames done and total of the running export.
+    pub fn progress(&self) -> Option<(usize, usize)> {
+        self.job.as_ref().and_then(BackgroundJob::progress)
+    }
+
+    /// The result of a finished export (never blocks on a running one).
+    pub fn poll(&mut self) -> Option<Result<String, String>> {
+        poll_job(&mut self.job)
+    }
+}
+
+impl NeuralClothApp {
+    /// The export dialog.
+    pub fn export_ui(&mut self, ui: &mut egui::Ui) {
+        if let Some(result) = self.export_job.poll() {
+            match &result {
+                Ok(s) => self.state.message(Level::Info, s.clone()),
+                Err(e) => self
+                    .state
+                    .message(Level::Error, format!("export failed: {e}")),
+            }
+            self.state.export.last_result = Some(result);
+        }
+        if !self.state.export.open {
+            return;
+        }
+        let mut open = true;
+        let motions: Vec<String> = self
+            .state
+            .scene
+            .avatar
+            .motions
+            .iter()
+            .map(|m| m.name.clone())
+            .collect();
+        let estimate = self.export_estimate();
+        let running = self.export_job.is_running();
+        let progress = self.export_job.progress();
+        let (mut run, mut cancel) = (false, false);
+        egui::Window::new("Export baked sequence")
+            .open(&mut open)
+            .collapsible(false)
+            .show(ui.ctx(), |ui| {
+                let settings = &mut self.state.export;
+                ui.add_enabled_ui(!running, |ui| {
+                    let before = settings.format;
+                    egui::ComboBox::from_label("format")
+                        .selected_text(settings.format.label())
+                        .show_ui(ui, |ui| {
+                            for f in ExportFormat::ALL {
+                                ui.selectable_value(&mut settings.format, f, f.label());
+                            }
+                        });
+                    if settings.format != before {
+                        settings.path = settings.format.with_extension(&settings.path);
+                    }
+                    ui.add_enabled_ui(settings.format.takes_preset(), |ui| {
+                        egui::ComboBox::from_label("preset")
+                            .selected_text(preset_label(settings.preset))
+                            .show_ui(ui, |ui| {
+                                ui.selectable_value(&mut settings.preset, None, preset_label(None));
+                                for p in Preset::ALL {
+                                    ui.selectable_value(&mut settings.preset, Some(p), p.label());
+                                }
+                            });
+                    });
+                    if !settings.format.takes_preset() {
+                        ui.weak("glTF is always Y up, metres; importers convert it.");
+                    }
+                    let motion_name = motions
+                        .get(settings.motion)
+                        .cloned()
+                        .unwrap_or_else(|| "none".into());
+                    egui::ComboBox::from_label("motion")
+                        .selected_text(motion_name)
+                        .show_ui(ui, |ui| {
+                            for (k, name) in motions.iter().enumerate() {
+                                ui.selectable_value(&mut settings.motion, k, name);
+                            }
+                        });
+                    ui.horizontal(|ui| {
+                        ui.label("path");
+                        ui.text_edit_singleline(&mut settings.path);
+                        if ui.button("Browse…").clicked() {
+                            let ext = settings.format.extension();
+                            if let Some(p) = rfd::FileDialog::new()
+                                .add_filter(settings.format.label(), &[ext])
+                                .save_file()
+                            {
+                                settings.path = p.display().to_string();
+                            }
+                        }
+                    });
+                });
+                match &estimate {
+                    Ok(e) => ui.label(e.summary()),
+                    Err(e) => ui.colored_label(ui.visuals().error_fg_color, e),
+                };
+                ui.label(format!("w = {:.2} (from the timeline)", self.state.w));
+                if running {
+                    let (done, total) = progress.unwrap_or((0, 0));
+                    let fraction = if total > 0 {
+                        done as f32 / total as f32
+                    } else {
+                        0.0
+                    };
+                    ui.add(
+                        egui::ProgressBar::new(fraction).text(format!("{done} / {total} frames")),
+                    );
+                    cancel = ui.button("Cancel").clicked();
+                } else {
+                    run = ui.button("Export").clicked();
+                }
+                match &settings.last_result {
+                    Some(Ok(s)) => {
+                        ui.label(s);
+                    }
+                    Some(Err(e)) => {
+                        ui.colored_label(ui.visuals().error_fg_color, e);
+                    }
+                    None => {}
+                }
+            });
+        self.state.export.open = open || running;
+        if cancel {
+            self.export_job.cancel();
+        }
+        if run {
+            self.start_export();
+        }
+    }
+
+    /// Frames and size of the dialog's current choice.
+    fn export_estimate(&self) -> Result<ExportEstimate, String> {
+        let settings = &self.state.export;
+        let garment = self
+            .state
+            .scene
+            .garment
+            .as_ref()
+            .ok_or("load a garment first")?;
+        let avatar = &self.state.scene.avatar;
+        let motion = avatar
+            .motions
+            .get(settings.motion)
+            .ok_or("choose a motion")?;
+        ExportEstimate::of(
+            settings.format,
+            motion,
+            self.state.train_config.fps,
+            garment,
+            avatar,
+        )
+    }
+
+    /// Builds the export request from the state and starts it on the export thread.
+    fn start_export(&mut self) {
+        let settings = self.state.export.clone();
+        let started = match (&self.state.scene.garment, self.exporter.clone()) {
+            (None, _) => Err("load a garment first".to_string()),
+            (_, None) => Err("export is not available in this build".to_string()),
+            (Some(garment), Some(exporter)) => {
+                let request = ExportRequest {
+                    avatar: self.state.scene.avatar.clone(),
+                    garment: garment.clone(),
+                    motion: settings.motion,
+                    weights: self
+                        .state
+                        .training
+                        .latest_weights
+                        .as_ref()
+                        .map(|(_, w)| w.clone()),
+                    w: self.state.w,
+                    fps: self.state.train_config.fps,
+                    format: settings.format,
+                    path: PathBuf::from(settings.path.trim()),
+                    preset: settings.preset.filter(|_| settings.format.takes_preset()),
+                };
+                self.export_job
+                    .start(exporter, request, self.notify.clone())
+            }
+        };
+        match started {
+            Ok(()) => self.state.export.last_result = None,
+            Err(e) => {
+                self.state
+                    .message(Level::Error, format!("export failed: {e}"));
+                self.state.export.last_result = Some(Err(e));
+            }
+        }
+    }
+}
+
+/// The menu text of a preset choice.
+fn preset_label(preset: Option<Preset>) -> &'static str {
+    preset.map_or("none (Y up, m, frames from 0)", Preset::label)
+}
