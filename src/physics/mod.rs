@@ -12,6 +12,9 @@
 //! - [`simulator`]: frame-by-frame minimisation of `½(x - x̃)ᵀM(x - x̃) + Δt² E(x)` with
 //!   L-BFGS ([`lbfgs`]) whose initial metric is a prefactored `M/Δt² + K` ([`sparse`]);
 //!   [`simulator::simulate`] bakes a motion, [`simulator::Stepper`] steps one frame at a time.
+//! - [`fused`]: the static energies again as host kernels computing energy and analytic
+//!   gradient in one pass, handed to burn through a surrogate; [`PhysicsTerms`] uses them by
+//!   default and keeps the tensor code as the reference.
 //! - [`cost`]: per-term cost measurement at a given number of degrees of freedom.
 //!
 //! # Conventions
@@ -34,6 +37,7 @@ pub mod collision;
 pub mod cost;
 pub mod energies;
 pub mod fabric;
+pub mod fused;
 pub mod lbfgs;
 pub mod metrics;
 pub mod paper_metrics;

@@ -1,5 +1,10 @@
 //! The trainer-facing loss builder: one [`PhysicsTerms`] per garment holds the rest state on the
 //! device and evaluates the enabled terms on batches of predictions.
+//!
+//! The static energies (cloth, bending, collision, gravity) run either as the fused host kernels
+//! of [`super::fused`] with hand-written gradients (the default) or as the burn tensor code of
+//! [`super::energies`] (the reference, [`PhysicsTerms::with_fused`]`(false)`); both return the
+//! same terms in the same order with the same values and gradients.
 
 use std::sync::Arc;
 
@@ -9,8 +14,10 @@ use crate::scene::Garment;
 
 use super::collision::{self, BodyBatch, Contacts};
 use super::energies;
+use super::fused::surrogate::{HostPositions, surrogate};
+use super::fused::{self, HostContacts, Kernel, ScratchPool};
 use super::rest::GarmentRest;
-use super::tensors::{RestTensors, read_f64};
+use super::tensors::{RestTensors, read_f32, read_f64};
 use super::{ClothModel, Effects, FabricParams, PhysicsError};
 
 /// A named loss term.
@@ -98,6 +105,10 @@ pub struct PhysicsTerms {
     fabric: FabricParams,
     effects: Effects,
     tensors: RestTensors,
+    /// Static energies through the fused kernels (true) or the burn reference (false).
+    fused: bool,
+    /// Gradient accumulators of the fused kernels, shared by clones.
+    scratch: Arc<ScratchPool>,
 }
 
 impl PhysicsTerms {
@@ -130,7 +141,21 @@ impl PhysicsTerms {
             fabric: fabric.clone(),
             effects: *effects,
             tensors,
+            fused: true,
+            scratch: Arc::new(ScratchPool::default()),
         })
+    }
+
+    /// Evaluates the static energies with the fused kernels (`true`, the default) or with the
+    /// burn tensor code they are checked against (`false`).
+    pub fn with_fused(mut self, fused: bool) -> Self {
+        self.fused = fused;
+        self
+    }
+
+    /// True when the static energies run as fused kernels.
+    pub fn fused(&self) -> bool {
+        self.fused
     }
 
     /// The rest state.
@@ -170,7 +195,132 @@ impl PhysicsTerms {
     }
 
     /// In-plane energy terms per sample (`[B]` each): stretch, plus shear for Baraff-Witkin.
-    pub fn cloth_energies(&self, x: &Tensor<3>) -> Vec<(Term, Tensor<1>)> {
+    pub fn cloth_energies(&self, x: &Tensor<3>) -> Result<Vec<(Term, Tensor<1>)>, PhysicsError> {
+        self.tensors.batch_of(x)?;
+        if self.fused {
+            self.fused_energies(x, &self.cloth_kernels(), None)
+        } else {
+            Ok(self.reference_cloth_energies(x))
+        }
+    }
+
+    /// Every enabled static energy per sample (`[B]` each): cloth, bending, collision (with
+    /// `contacts`, required when collision is on), gravity.
+    pub fn static_energies(
+        &self,
+        x: &Tensor<3>,
+        contacts: Option<&Contacts>,
+    ) -> Result<Vec<(Term, Tensor<1>)>, PhysicsError> {
+        self.tensors.batch_of(x)?;
+        if self.effects.collision {
+            let contacts = contacts.ok_or(PhysicsError::MissingBody)?;
+            if contacts.points.dims() != x.dims() {
+                return Err(PhysicsError::ShapeMismatch {
+                    what: "collision contacts".into(),
+                    expected: format!("{:?}", x.dims()),
+                    found: format!("{:?}", contacts.points.dims()),
+                });
+            }
+        }
+        if !self.fused {
+            return Ok(self.reference_static_energies(x, contacts));
+        }
+        let mut kernels = self.cloth_kernels();
+        let f = &self.fabric;
+        if self.effects.bending {
+            kernels.push((
+                Term::Bending,
+                Kernel::Bending {
+                    k: f64::from(f.bending_stiffness),
+                },
+            ));
+        }
+        if self.effects.collision {
+            kernels.push((
+                Term::Collision,
+                Kernel::Collision {
+                    k: f64::from(f.collision_stiffness),
+                    eps_m: f64::from(f.collision_threshold_m),
+                },
+            ));
+        }
+        if self.effects.gravity {
+            let g = f.gravity();
+            kernels.push((
+                Term::Gravity,
+                Kernel::Gravity {
+                    g: [g.x, g.y, g.z].map(f64::from),
+                },
+            ));
+        }
+        self.fused_energies(x, &kernels, contacts)
+    }
+
+    /// The fused kernels of the in-plane model, with their terms.
+    fn cloth_kernels(&self) -> Vec<(Term, Kernel)> {
+        let f = &self.fabric;
+        let k = f64::from(f.stretch_stiffness);
+        match f.cloth_model {
+            ClothModel::MassSpring => vec![(Term::Stretch, Kernel::MassSpring { k })],
+            ClothModel::BaraffWitkin => vec![
+                (Term::Stretch, Kernel::BaraffWitkinStretch { k }),
+                (
+                    Term::Shear,
+                    Kernel::BaraffWitkinShear {
+                        k: f64::from(f.shear_stiffness),
+                    },
+                ),
+            ],
+            ClothModel::Stvk => vec![(
+                Term::Stretch,
+                Kernel::Stvk {
+                    lambda: f64::from(f.lame_lambda),
+                    mu: f64::from(f.lame_mu),
+                },
+            )],
+        }
+    }
+
+    /// Evaluates `kernels` on `x` (`[B, V, 3]`, read back once) on the host and returns each
+    /// term as a `[B]` tensor whose gradient with respect to `x` is the kernel's analytic one.
+    /// `contacts` is required when a kernel needs it.
+    pub fn fused_energies(
+        &self,
+        x: &Tensor<3>,
+        kernels: &[(Term, Kernel)],
+        contacts: Option<&Contacts>,
+    ) -> Result<Vec<(Term, Tensor<1>)>, PhysicsError> {
+        let b = self.tensors.batch_of(x)?;
+        let host_contacts = if kernels.iter().any(|(_, k)| k.needs_contacts()) {
+            let c = contacts.ok_or(PhysicsError::MissingBody)?;
+            Some(HostContacts {
+                points: read_f32(c.points.clone())?,
+                normals: read_f32(c.normals.clone())?,
+            })
+        } else {
+            None
+        };
+        let only: Vec<Kernel> = kernels.iter().map(|(_, k)| *k).collect();
+        let (rest, pool, dtype) = (&*self.rest, &*self.scratch, self.tensors.dtype);
+        let values = match HostPositions::read(x)? {
+            HostPositions::F32(v) => {
+                fused::evaluate(rest, &only, &v, b, host_contacts.as_ref(), pool)?
+                    .into_iter()
+                    .map(|e| surrogate(x, e, dtype))
+                    .collect::<Result<Vec<_>, _>>()?
+            }
+            HostPositions::F64(v) => {
+                fused::evaluate(rest, &only, &v, b, host_contacts.as_ref(), pool)?
+                    .into_iter()
+                    .map(|e| surrogate(x, e, dtype))
+                    .collect::<Result<Vec<_>, _>>()?
+            }
+        };
+        Ok(kernels.iter().map(|(t, _)| *t).zip(values).collect())
+    }
+
+    /// The burn reference of [`Self::cloth_energies`].
+    fn reference_cloth_energies(&self, x: &Tensor<3>) -> Vec<(Term, Tensor<1>)> {
         let f = &self.fabric;
         let rt = &self.tensors;
         match f.cloth_model {
@@ -190,29 +340,19 @@ impl PhysicsTerms {
         }
     }
 
-    /// Every enabled static energy per sample (`[B]` each): cloth, bending, collision (with
-    /// `contacts`, required when collision is on), gravity.
-    pub fn static_energies(
+    /// The burn reference of [`Self::static_energies`] (arguments already checked).
+    fn reference_static_energies(
         &self,
         x: &Tensor<3>,
         contacts: Option<&Contacts>,
-    ) -> Result<Vec<(Term, Tensor<1>)>, PhysicsError> {
-        self.tensors.batch_of(x)?;
+    ) -> Vec<(Term, Tensor<1>)> {
         let f = &self.fabric;
         let rt = &self.tensors;
-        let mut out = self.cloth_energies(x);
+        let mut out = self.reference_cloth_energies(x);
         if self.effects.bending {
             out.push((Term::Bending, energies::bending(x, rt, f.bending_stiffness)));
         }
-        if self.effects.collision {
-            let contacts = contacts.ok_or(PhysicsError::MissingBody)?;
-            if contacts.points.dims() != x.dims() {
-                return Err(PhysicsError::ShapeMismatch {
-                    what: "collision contacts".into(),
-                    expected: format!("{:?}", x.dims()),
-                    found: format!("{:?}", contacts.points.dims()),
-                });
-            }
+        if let (true, Some(contacts)) = (self.effects.collision, contacts) {
             out.push((
                 Term::Collision,
                 collision::collision(
@@ -227,7 +367,7 @@ impl PhysicsTerms {
         if self.effects.gravity {
             out.push((Term::Gravity, energies::gravity(x, rt)));
         }
-        Ok(out)
+        out
     }
 
     /// Static losses of the last predicted frame `x` (`[B, V, 3]`), batch means. `body` is

@@ -13,7 +13,7 @@ use burn::tensor::Tensor;
 use crate::physics::tensors::{RestTensors, dot, gather, norm2, per_sample};
 
 /// Below this `sin² + cos²` (~1 when healthy) a hinge counts as collapsed.
-const COLLAPSED: f64 = 1e-12;
+pub(crate) const COLLAPSED: f64 = 1e-12;
 
 /// Face normals scaled by `1/|c̄_f|` (unit length at rest, 0 for degenerate faces), `[B, F, 3]`.
 pub fn scaled_face_normals(x: &Tensor<3>, rt: &RestTensors) -> Option<Tensor<3>> {

@@ -8,7 +8,7 @@ use crate::physics::tensors::{RestTensors, dot, gather, norm2, per_sample};
 
 /// Squared regulariser under `|w|` square roots (unitless): keeps gradients finite when a
 /// triangle collapses completely.
-const W_EPS2: f64 = 1e-12;
+pub(crate) const W_EPS2: f64 = 1e-12;
 
 /// Current edge lengths `[B, E, 1]` in metres (`sqrt(|d|² + eps²)`), or None without edges.
 pub fn edge_lengths(x: &Tensor<3>, rt: &RestTensors) -> Option<Tensor<3>> {
