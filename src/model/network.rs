@@ -21,6 +21,7 @@
 use burn::module::Module;
 use burn::nn::{Gru, GruConfig, Initializer, Linear};
 use burn::tensor::activation::relu;
+use burn::tensor::module::linear as dense;
 use burn::tensor::{Device, Tensor};
 use serde::{Deserialize, Serialize};
 
@@ -77,10 +78,16 @@ pub struct ClothNetConfig {
     pub basis_lr_scale: f64,
     /// Give the basis a learned per-vertex bias: the mean offset over all poses, which a
     /// warm start sets to a simulated drape (see `TrainConfig::predrape_secs`). It learns at
-    /// the plain rate (about 1 mm per step per coordinate under Adam) and, unlike the decoder
-    /// units, cannot die. Default true (runs saved before it existed read false).
+    /// the rate set by [`ClothNetConfig::basis_bias_lr_scale`] and, unlike the decoder units,
+    /// cannot die. Default true (runs saved before it existed read false).
     #[serde(default)]
     pub basis_bias: bool,
+    /// Learning-rate factor of the basis bias, in (0, 1]; default
+    /// [`DEFAULT_BASIS_BIAS_LR_SCALE`] (runs saved before it existed read 1). Stored as `b̂`
+    /// with `b = s_b·b̂`: at the plain rate Adam moves every vertex about 1 mm per step
+    /// whatever its gradient, a noise that smears the warm-start folds.
+    #[serde(default = "unit_scale")]
+    pub basis_bias_lr_scale: f64,
 }
 
 fn unit_scale() -> f64 {
@@ -89,6 +96,9 @@ fn unit_scale() -> f64 {
 
 /// Default [`ClothNetConfig::basis_lr_scale`]: one over the default decoder width.
 pub const DEFAULT_BASIS_LR_SCALE: f64 = 1.0 / 512.0;
+
+/// Default [`ClothNetConfig::basis_bias_lr_scale`].
+pub const DEFAULT_BASIS_BIAS_LR_SCALE: f64 = 1.0 / 16.0;
 
 impl Default for ClothNetConfig {
     fn default() -> Self {
@@ -103,6 +113,7 @@ impl Default for ClothNetConfig {
             basis_init_gain: 1.0,
             basis_lr_scale: DEFAULT_BASIS_LR_SCALE,
             basis_bias: true,
+            basis_bias_lr_scale: DEFAULT_BASIS_BIAS_LR_SCALE,
         }
     }
 }
@@ -143,6 +154,15 @@ impl ClothNetConfig {
             return Err(ModelError::InvalidConfig(format!(
                 "basis_lr_scale {} is outside (0, 1]",
                 self.basis_lr_scale
+            )));
+        }
+        if !(self.basis_bias_lr_scale.is_finite()
+            && self.basis_bias_lr_scale > 0.0
+            && self.basis_bias_lr_scale <= 1.0)
+        {
+            return Err(ModelError::InvalidConfig(format!(
+                "basis_bias_lr_scale {} is outside (0, 1]",
+                self.basis_bias_lr_scale
             )));
         }
         if !(self.basis_init_gain.is_finite() && self.basis_init_gain >= 0.0) {
@@ -245,6 +265,7 @@ impl ClothNetConfig {
                 mlp: decoder_mlp,
                 basis,
                 basis_scale: self.basis_lr_scale,
+                bias_scale: self.basis_bias_lr_scale,
             },
             input_joints,
             vertices,
@@ -305,6 +326,8 @@ pub struct Decoder {
     pub basis: Linear,
     /// The effective basis is `basis_scale · basis` ([`ClothNetConfig::basis_lr_scale`]).
     pub basis_scale: f64,
+    /// The effective bias is `bias_scale · basis.bias` ([`ClothNetConfig::basis_bias_lr_scale`]).
+    pub bias_scale: f64,
 }
 
 impl Decoder {
@@ -399,10 +422,13 @@ impl ClothNet {
             .mlp
             .forward(z)
             .mul_scalar(self.decoder.basis_scale);
-        self.decoder
+        let bias = self
+            .decoder
             .basis
-            .forward(h)
-            .reshape([b, t, self.vertices, 3])
+            .bias
+            .as_ref()
+            .map(|b| b.val().mul_scalar(self.decoder.bias_scale));
+        dense(h, self.decoder.basis.weight.val(), bias).reshape([b, t, self.vertices, 3])
     }
 
     /// Offsets `[B, T, V, 3]` for every frame of the window: static descriptors `[B, T, J, 9]`,
@@ -518,6 +544,38 @@ mod tests {
         let back: ClothNetConfig = toml::from_str(&toml::to_string(&c).unwrap()).unwrap();
         assert_eq!(back, c);
         assert!(c.init(0, 5, &Device::flex()).is_err());
+    }
+
+    #[test]
+    fn basis_bias_scale_multiplies_the_stored_bias_in_burn_and_in_exported_weights() {
+        use burn::module::Param;
+        use burn::tensor::TensorData;
+        let device = Device::flex();
+        let mut net = ClothNetConfig {
+            basis_bias_lr_scale: 0.25,
+            ..small()
+        }
+        .init(3, 5, &device)
+        .unwrap();
+        let stored: Vec<f32> = (0..15).map(|i| i as f32 * 0.1 - 0.7).collect();
+        let stored_t = Tensor::<1>::from_data(TensorData::new(stored.clone(), [15]), &device);
+        net.decoder.basis.bias = Some(Param::from_tensor(stored_t.clone()));
+        let mut unit = net.clone();
+        unit.decoder.bias_scale = 1.0;
+        unit.decoder.basis.bias = Some(Param::from_tensor(stored_t.mul_scalar(0.25)));
+        let z = Tensor::<3>::ones([1, 2, 12], &device).mul_scalar(0.3);
+        let (a, b) = (
+            net.decode(z.clone()).into_data().to_vec::<f32>().unwrap(),
+            unit.decode(z).into_data().to_vec::<f32>().unwrap(),
+        );
+        for (x, y) in a.iter().zip(&b) {
+            assert!((x - y).abs() < 1e-6, "{x} vs {y}");
+        }
+        let weights = crate::model::weights::InferenceWeights::from_module(&net).unwrap();
+        let bias = weights.basis.bias.unwrap();
+        for (e, s) in bias.iter().zip(&stored) {
+            assert!((e - 0.25 * s).abs() < 1e-6, "{e} vs {}", 0.25 * s);
+        }
     }
 
     #[test]

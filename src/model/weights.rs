@@ -481,12 +481,16 @@ impl InferenceWeights {
     }
 }
 
-/// The decoder's effective basis (`basis_scale · B̂`, see [`crate::model::ClothNetConfig`]).
+/// The decoder's effective basis and bias (`basis_scale · B̂`, `bias_scale · b̂`, see [`crate::model::ClothNetConfig`]).
 fn effective_basis(decoder: &crate::model::network::Decoder) -> Result<DenseWeights, ModelError> {
     let mut basis = DenseWeights::from_linear(&decoder.basis, "basis")?;
     let scale = decoder.basis_scale as f32;
     if scale != 1.0 {
         basis.weight.iter_mut().for_each(|v| *v *= scale);
+    }
+    let bias_scale = decoder.bias_scale as f32;
+    if let (Some(bias), true) = (basis.bias.as_mut(), bias_scale != 1.0) {
+        bias.iter_mut().for_each(|v| *v *= bias_scale);
     }
     Ok(basis)
 }

@@ -93,13 +93,15 @@ pub fn set_basis_bias_to_drape(
             net.vertices
         )));
     }
+    // Stored as b̂ = b / bias_scale (see `ClothNetConfig::basis_bias_lr_scale`).
+    let inv_scale = (1.0 / net.decoder.bias_scale) as f32;
     let offsets: Vec<f32> = garment
         .mesh
         .positions
         .iter()
         .zip(drape)
         .flat_map(|(t, d)| {
-            let o = d - t;
+            let o = (d - t) * inv_scale;
             [o.x, o.y, o.z]
         })
         .collect();
