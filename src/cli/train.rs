@@ -61,6 +61,10 @@ pub struct TrainArgs {
     /// code's single rate, which kills flared garments: see docs/TRAINING.md).
     #[arg(long)]
     pub basis_lr_scale: Option<f64>,
+    /// Learning-rate factor of the basis bias (the mean offset the warm start sets), in
+    /// (0, 1] (default 1/16).
+    #[arg(long)]
+    pub basis_bias_lr_scale: Option<f64>,
     /// Gain of the basis initialisation (default 1 = glorot-normal).
     #[arg(long)]
     pub basis_init_gain: Option<f64>,
@@ -72,6 +76,10 @@ pub struct TrainArgs {
     /// also turns the warm start off).
     #[arg(long)]
     pub no_basis_bias: bool,
+    /// Let every window train the static encoder (default: only still windows do; see
+    /// docs/TRAINING.md).
+    #[arg(long)]
+    pub static_from_all: bool,
     /// Keep zero initial biases (no data-dependent centring of the layers).
     #[arg(long)]
     pub no_centre_init: bool,
@@ -213,6 +221,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     if let Some(s) = args.basis_lr_scale {
         model.basis_lr_scale = s;
     }
+    if let Some(s) = args.basis_bias_lr_scale {
+        model.basis_bias_lr_scale = s;
+    }
     if let Some(g) = args.basis_init_gain {
         model.basis_init_gain = g;
     }
@@ -221,6 +232,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     model.basis_bias = !args.no_basis_bias;
     train.centre_init = !args.no_centre_init;
+    train.static_from_still = !args.static_from_all;
     if let Some(f) = args.still_fraction {
         train.still_fraction = f;
     }

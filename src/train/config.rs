@@ -71,6 +71,12 @@ pub struct TrainConfig {
     /// (measured on the skirt: still hem radius 0.199 m against 0.220 m without, simulator
     /// 0.136 m; docs/TRAINING.md).
     pub still_fraction: f32,
+    /// Only the still windows train the static encoder: in moving windows its code is
+    /// detached, so the static branch learns the quasi-static drape of each pose and the
+    /// dynamic branch carries all motion (without it the static branch learns the mean of
+    /// the moving shapes of a pose: a skirt flared by the spin even when still). Needs
+    /// `still_fraction > 0` and the disentangled encoder; default true.
+    pub static_from_still: bool,
     /// A validation pass with at least this percentage of dead units in one revivable layer
     /// (decoder, static hidden layers) triggers the stall remedy (revive the dead units); 1..=100, default 75.
     pub dead_limit_pct: f64,
@@ -96,6 +102,7 @@ impl Default for TrainConfig {
             predrape_secs: 1.5,
             centre_init: true,
             still_fraction: 0.25,
+            static_from_still: true,
             dead_limit_pct: 75.0,
         }
     }

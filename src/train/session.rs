@@ -165,31 +165,47 @@ impl NeuralSession {
         Some(super::losses::skin_blended(template, blended).reshape([b, v, 3]))
     }
 
-    /// Posed garment `[B, 3, V, 3]` of the last three frames of `batch`, with `augment` samples
-    /// (the last ones) given another sample's dynamic code and detached encoders.
-    fn predict(&mut self, batch: &Batch, augment: usize) -> Tensor<4> {
+    /// `z_s + z_d`, except for the last `augment` samples: their own static code (detached)
+    /// plus a shuffled sample's dynamic code (detached), the paper's motion augmentation.
+    fn mix_codes(&mut self, z_s: Tensor<3>, z_d: Tensor<3>, augment: usize) -> Tensor<3> {
+        if augment == 0 {
+            return z_s + z_d;
+        }
+        let b = z_s.dims()[0];
+        let kept = b - augment;
+        let mut perm: Vec<i64> = (0..b as i64).collect();
+        perm.shuffle(&mut self.rng);
+        let picks = Tensor::<1, Int>::from_data(
+            TensorData::new(perm[..augment].to_vec(), [augment]),
+            &self.device,
+        );
+        let normal = z_s.clone().narrow(0, 0, kept) + z_d.clone().narrow(0, 0, kept);
+        let shuffled = z_s.narrow(0, kept, augment).detach() + z_d.select(0, picks).detach();
+        Tensor::cat(vec![normal, shuffled], 0)
+    }
+
+    /// Posed garment `[B, 3, V, 3]` of the last three frames of `batch` whose first `still`
+    /// windows are still, with `augment` samples (the last ones) given another sample's
+    /// dynamic code and detached encoders.
+    fn predict(&mut self, batch: &Batch, still: usize, augment: usize) -> Tensor<4> {
         let (b, t) = (batch.size, batch.frames);
         let j = self.train.input_joints;
         let statics = self.tensor4(batch.static_desc.clone(), [b, t, j, 9]);
         let dynamics = (self.model.kind() != crate::model::EncoderKind::StaticOnly)
             .then(|| self.tensor4(batch.dynamic_desc.clone(), [b, t, j, 12]));
-        let offsets = if augment == 0 || !self.model.has_dynamic_branch() {
+        let split_static = self.config.static_from_still && still > 0 && still < b;
+        let offsets = if (augment == 0 && !split_static) || !self.model.has_dynamic_branch() {
             self.model.forward_last(statics, dynamics, 1.0, 3)
         } else {
             let (z_s, z_d) = self.model.encode_last(statics, dynamics, 3);
             let z = match z_d {
                 Some(z_d) => {
-                    let kept = b - augment;
-                    let mut perm: Vec<i64> = (0..b as i64).collect();
-                    perm.shuffle(&mut self.rng);
-                    let picks = Tensor::<1, Int>::from_data(
-                        TensorData::new(perm[..augment].to_vec(), [augment]),
-                        &self.device,
-                    );
-                    let normal = z_s.clone().narrow(0, 0, kept) + z_d.clone().narrow(0, 0, kept);
-                    let shuffled =
-                        z_s.narrow(0, kept, augment).detach() + z_d.select(0, picks).detach();
-                    Tensor::cat(vec![normal, shuffled], 0)
+                    let z_s = if split_static {
+                        detach_from(z_s, still)
+                    } else {
+                        z_s
+                    };
+                    self.mix_codes(z_s, z_d, augment)
                 }
                 None => z_s,
             };
@@ -277,6 +293,16 @@ impl NeuralSession {
     }
 }
 
+/// `z` with rows `from..` detached (their gradient stops here).
+fn detach_from(z: Tensor<3>, from: usize) -> Tensor<3> {
+    let b = z.dims()[0];
+    if from >= b {
+        return z;
+    }
+    let tail = z.clone().narrow(0, from, b - from).detach();
+    Tensor::cat(vec![z.narrow(0, 0, from), tail], 0)
+}
+
 /// `x[:, k]` as `[B, V, 3]`.
 fn frame(x: &Tensor<4>, k: usize) -> Tensor<3> {
     let [b, _, v, c] = x.dims();
@@ -302,7 +328,7 @@ impl Session for NeuralSession {
         let batch =
             self.train
                 .batch_with_still(&windows, still, self.window_frames(), &self.garment.skin);
-        let x = self.predict(&batch, augment);
+        let x = self.predict(&batch, still, augment);
         let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
         let (contacts, losses) = self.static_losses(&self.train, &batch, &x_t)?;
         let mut total = losses
@@ -367,7 +393,7 @@ impl Session for NeuralSession {
             return Err("no validation frames".into());
         }
         let batch = data.batch(&windows, self.window_frames(), &self.garment.skin);
-        let x = self.predict(&batch, 0).detach();
+        let x = self.predict(&batch, 0, 0).detach();
         let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
         let data = if self.validation.is_empty() {
             &self.train
