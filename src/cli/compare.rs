@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use neural_cloth::train::compare::{
-    CompareOptions, CompareReport, HemPair, MotionComparison, compare,
+    CompareOptions, CompareReport, HemPair, MotionComparison, TrainingCheck, append_checks, compare,
 };
 use neural_cloth::train::load_trained;
 
@@ -35,6 +35,10 @@ pub struct CompareArgs {
     /// Print the report as JSON instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Also append the check (with the run's seed, steps, minutes and dead units) to this
+    /// JSON-lines file; `neural-cloth report` renders `docs/report/training_checks.jsonl`.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
 }
 
 /// Runs `compare`.
@@ -65,6 +69,9 @@ pub fn run(args: CompareArgs) -> anyhow::Result<()> {
         true
     })?;
     bar.finish_and_clear();
+    if let Some(path) = &args.record {
+        append_checks(path, &TrainingCheck::from_report(&trained, &report))?;
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {

@@ -63,8 +63,8 @@ fn speedup_text(p: &CostPoint) -> String {
     }
 }
 
-/// The whole Markdown document.
-pub fn render(r: &Report) -> String {
+/// The whole Markdown document, with the recorded training `checks` (may be empty).
+pub fn render(r: &Report, checks: &[crate::train::compare::TrainingCheck]) -> String {
     let mut s = String::new();
     let a = &r.accuracy;
     let _ = writeln!(
@@ -106,6 +106,7 @@ pub fn render(r: &Report) -> String {
         "Whether training learns cloth (the dead skirt, the remedies, and runs checked against the simulator \
          with `neural-cloth compare`, per seed, with targets met and not met) is in [`TRAINING.md`](TRAINING.md).\n"
     );
+    super::training_checks::render_training_checks(&mut s, checks);
     accuracy(&mut s, r);
     let _ = writeln!(s, "## 2. Training curves of the default run\n");
     let last = a.training.validation.last().copied().unwrap_or_default();

@@ -24,6 +24,7 @@ pub mod markdown;
 pub mod plots;
 pub mod runs;
 pub mod settings;
+pub mod training_checks;
 
 pub use accuracy::{CostOptions, CostPoint, CostResult, Method, SpeedUp, run_cost_experiment};
 pub use fidelity::{FidelityOptions, FidelityResult, run_fidelity};
@@ -318,8 +319,12 @@ pub fn run_report(
     })
 }
 
+/// Recorded training checks beside `report.json` (`compare --record`), rendered into the report.
+pub const TRAINING_CHECKS_FILE: &str = "training_checks.jsonl";
+
 /// Writes `REPORT.md` into `out_dir` and `report.json` plus the SVG figures into
-/// `out_dir/report/`; returns the paths written. Every file is written atomically.
+/// `out_dir/report/` (with the training checks of `out_dir/report/training_checks.jsonl`);
+/// returns the paths written. Every file is written atomically.
 pub fn write_report(report: &Report, out_dir: &Path) -> Result<Vec<PathBuf>, ReportError> {
     use crate::io::export::atomic::write_atomic;
     let figures_dir = out_dir.join("report");
@@ -335,8 +340,10 @@ pub fn write_report(report: &Report, out_dir: &Path) -> Result<Vec<PathBuf>, Rep
     let json_path = figures_dir.join("report.json");
     write_atomic(&json_path, serde_json::to_string(report)?.as_bytes())?;
     written.push(json_path);
+    let checks_path = figures_dir.join(TRAINING_CHECKS_FILE);
+    let checks = crate::train::compare::read_checks(&checks_path)?;
     let md_path = out_dir.join("REPORT.md");
-    write_atomic(&md_path, markdown::render(report).as_bytes())?;
+    write_atomic(&md_path, markdown::render(report, &checks).as_bytes())?;
     written.push(md_path);
     Ok(written)
 }

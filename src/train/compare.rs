@@ -25,6 +25,7 @@
 
 mod cache;
 mod measure;
+mod record;
 
 pub use cache::{REFERENCE_TOLERANCE, Reference, reference_dir, reference_for};
 pub use measure::{
@@ -32,6 +33,7 @@ pub use measure::{
     Sequences, compare_frames, distance_stats, hem_radius_m, hem_vertices, joint_speeds_m_per_s,
     mean_where, measure_motion, reaches_below_hips, still_frames,
 };
+pub use record::{TrainingCheck, append_checks, read_checks};
 
 use std::path::PathBuf;
 use std::sync::Arc;
