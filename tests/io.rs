@@ -2,7 +2,8 @@
 //! facts from LICENSES.md and from the files themselves (read here independently), rest-pose
 //! skinning against an independent glTF skinning, retargeting of every CMU clip, typed errors
 //! for bad input, and a mutation test (random byte flips, truncations and splices) asserting
-//! that no importer panics.
+//! that no importer panics. The USD export is read back by Pixar's usd-core and checked with
+//! its validators (`io/usd_export.rs`).
 //!
 //! Layout: this file holds the shared helpers; the tests live in `io/*.rs` (one test binary).
 
@@ -16,6 +17,8 @@ mod motions;
 mod mutation;
 #[path = "io/raw_gltf.rs"]
 mod raw_gltf;
+#[path = "io/usd_export.rs"]
+mod usd_export;
 
 use std::path::{Path, PathBuf};
 
