@@ -126,9 +126,8 @@ impl Sinks {
     ) -> Result<Self, ExportError> {
         let convention = options.convention();
         let doc = format!(
-            "neural-cloth bake of '{}' on '{}', {} fps, preset {}",
+            "neural-cloth bake of '{}', {} fps, preset {}",
             garment.name,
-            options.out.display(),
             options.fps,
             options.preset.map_or("none", |p| p.name()),
         );

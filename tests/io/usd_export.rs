@@ -167,12 +167,11 @@ fn run_script(
     (out.status, json)
 }
 
+/// Each mesh's name and its points per time sample.
+type MeshSamples = Vec<(String, Vec<Vec<Vec3>>)>;
+
 /// usd-core's view of a stage: its JSON report and each mesh's points per time sample.
-fn read_stage(
-    python: &Path,
-    stage: &Path,
-    dir: &Path,
-) -> (serde_json::Value, Vec<(String, Vec<Vec<Vec3>>)>) {
+fn read_stage(python: &Path, stage: &Path, dir: &Path) -> (serde_json::Value, MeshSamples) {
     let out = dir.join(format!(
         "read-{}",
         stage.file_stem().unwrap().to_string_lossy()
