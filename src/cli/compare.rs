@@ -26,8 +26,9 @@ pub struct CompareArgs {
     /// L-BFGS iterations per frame of the reference simulation.
     #[arg(long, default_value_t = 200)]
     pub iterations: usize,
-    /// Seconds the simulator holds the first pose before the motion plays.
-    #[arg(long, default_value_t = 0.5)]
+    /// Seconds the simulator holds the first pose before the motion plays, to come to rest
+    /// (0..=5).
+    #[arg(long, default_value_t = 3.0)]
     pub settle: f32,
     /// Simulate again even when RUN/reference/ holds this reference.
     #[arg(long)]
