@@ -3,6 +3,12 @@
 //! state assertions after driving the UI (buttons, the w slider, file loading).
 //!
 //! Update snapshots with `UPDATE_SNAPSHOTS=1 cargo test --release --test app`.
+//!
+//! Layout: this file holds the shared helpers and most tests; the export dialog's tests live in
+//! `app/export_dialog.rs` (one test binary).
+
+#[path = "app/export_dialog.rs"]
+mod export_dialog;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -49,7 +55,11 @@ fn options(launcher: Option<Box<dyn TrainerLauncher>>) -> AppOptions {
 
 /// The app on the default scene, paused at [`SHOWN_TIME_SECS`].
 fn harness(launcher: Option<Box<dyn TrainerLauncher>>) -> Harness<'static, NeuralClothApp> {
-    let options = options(launcher);
+    harness_with(options(launcher))
+}
+
+/// [`harness`] with the given start-up options.
+fn harness_with(options: AppOptions) -> Harness<'static, NeuralClothApp> {
     let mut harness = Harness::builder()
         .with_size(SIZE)
         .with_pixels_per_point(1.0)

@@ -202,3 +202,71 @@ impl ExportEstimate {
         format!("{} frames, about {size}", self.frames)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_format_maps_to_the_bake_layer_and_its_extension() {
+        assert_eq!(ExportFormat::Usd.bake_format(), BakeFormat::Usd);
+        assert!(ExportFormat::Usd.takes_preset());
+        assert!(!ExportFormat::Glb.takes_preset());
+        assert_eq!(
+            ExportFormat::Usd.with_extension("export/garment.glb"),
+            "export/garment.usda"
+        );
+        assert_eq!(
+            ExportFormat::ObjSequence.with_extension("export/garment.usda"),
+            "export/garment"
+        );
+        for f in ExportFormat::ALL {
+            assert_eq!(
+                ExportFormat::ALL
+                    .iter()
+                    .filter(|g| g.bake_format() == f.bake_format())
+                    .count(),
+                1
+            );
+        }
+    }
+
+    #[test]
+    fn the_estimate_counts_the_frames_of_the_bake() {
+        let scene = crate::scene::procedural::default_scene().unwrap();
+        let motion = &scene.motions[0].0;
+        let e = ExportEstimate::of(
+            ExportFormat::Pc2,
+            motion,
+            30.0,
+            &scene.garment,
+            &scene.avatar,
+        )
+        .unwrap();
+        let frames = (motion.duration_secs() * 30.0 + 1e-3).floor() as usize + 1;
+        assert_eq!(e.frames, frames);
+        // PC2: a 32-byte header and 12 bytes a point a frame, garment and body.
+        let points = scene.garment.vertex_count() + scene.avatar.bind_mesh.positions.len();
+        assert_eq!(e.bytes, 64 + (frames * points * 12) as u64);
+        assert!(e.summary().starts_with(&format!("{frames} frames, about ")));
+        let usd = ExportEstimate::of(
+            ExportFormat::Usd,
+            motion,
+            30.0,
+            &scene.garment,
+            &scene.avatar,
+        )
+        .unwrap();
+        assert!(usd.bytes > e.bytes * 2, "text is larger than binary");
+        assert!(
+            ExportEstimate::of(
+                ExportFormat::Usd,
+                motion,
+                0.0,
+                &scene.garment,
+                &scene.avatar
+            )
+            .is_err()
+        );
+    }
+}

@@ -132,8 +132,9 @@ impl NeuralClothApp {
                             }
                         });
                     ui.horizontal(|ui| {
-                        ui.label("path");
-                        ui.text_edit_singleline(&mut settings.path);
+                        let label = ui.label("path");
+                        ui.text_edit_singleline(&mut settings.path)
+                            .labelled_by(label.id);
                         if ui.button("Browse…").clicked() {
                             let ext = settings.format.extension();
                             if let Some(p) = rfd::FileDialog::new()
@@ -247,4 +248,95 @@ impl NeuralClothApp {
 /// The menu text of a preset choice.
 fn preset_label(preset: Option<Preset>) -> &'static str {
     preset.map_or("none (Y up, m, frames from 0)", Preset::label)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::time::{Duration, Instant};
+
+    /// Pretends to bake `frames` frames, one per millisecond, honouring cancel.
+    struct SlowExporter {
+        frames: usize,
+        calls: AtomicUsize,
+    }
+
+    impl Exporter for SlowExporter {
+        fn export(
+            &self,
+            _request: ExportRequest,
+            progress: &mut dyn FnMut(usize, usize) -> bool,
+        ) -> Result<String, String> {
+            self.calls.fetch_add(1, Ordering::Relaxed);
+            for k in 1..=self.frames {
+                std::thread::sleep(Duration::from_millis(1));
+                if !progress(k, self.frames) {
+                    return Err("bake cancelled".into());
+                }
+            }
+            Ok(format!("wrote {} frames", self.frames))
+        }
+    }
+
+    fn request() -> ExportRequest {
+        let scene = crate::scene::procedural::default_scene().unwrap();
+        ExportRequest {
+            avatar: Arc::new(scene.avatar),
+            garment: Arc::new(scene.garment),
+            motion: 0,
+            weights: None,
+            w: 1.0,
+            fps: 30.0,
+            format: ExportFormat::Usd,
+            path: PathBuf::from("x.usda"),
+            preset: Some(Preset::Unreal),
+        }
+    }
+
+    fn wait(job: &mut ExportJob) -> Result<String, String> {
+        let start = Instant::now();
+        loop {
+            if let Some(r) = job.poll() {
+                return r;
+            }
+            assert!(start.elapsed() < Duration::from_secs(30), "export hangs");
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+
+    #[test]
+    fn export_runs_on_its_thread_reports_progress_and_cancels() {
+        let exporter = Arc::new(SlowExporter {
+            frames: 20,
+            calls: AtomicUsize::new(0),
+        });
+        let notify: Arc<dyn Fn() + Send + Sync> = Arc::new(|| {});
+        let mut job = ExportJob::default();
+        job.start(exporter.clone(), request(), notify.clone())
+            .unwrap();
+        assert!(job.is_running());
+        assert!(
+            job.start(exporter.clone(), request(), notify.clone())
+                .is_err()
+        );
+        assert_eq!(wait(&mut job), Ok("wrote 20 frames".into()));
+        assert!(!job.is_running());
+
+        let long = Arc::new(SlowExporter {
+            frames: 100_000,
+            calls: AtomicUsize::new(0),
+        });
+        job.start(long, request(), notify).unwrap();
+        let start = Instant::now();
+        while job.progress().is_none_or(|(done, _)| done == 0) {
+            assert!(start.elapsed() < Duration::from_secs(30));
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let (done, total) = job.progress().unwrap();
+        assert!(done >= 1 && total == 100_000);
+        job.cancel();
+        assert_eq!(wait(&mut job), Err("bake cancelled".into()));
+        assert_eq!(exporter.calls.load(Ordering::Relaxed), 1);
+    }
 }
