@@ -38,7 +38,7 @@ pub enum Command {
     Train(train::TrainArgs),
     /// Print the §4.2 metrics of a trained model on its scene's test split.
     Eval(train::EvalArgs),
-    /// Bake a motion with a trained model into PC2, MDD, OBJ sequence or glTF.
+    /// Bake a motion with a trained model into PC2, MDD, OBJ sequence, USD or glTF.
     Bake(bake::BakeArgs),
     /// Bake a motion with the reference simulator (the paper's Eq. 8 baseline).
     Simulate(bake::SimulateArgs),

@@ -503,3 +503,55 @@ fn the_cli_refuses_an_unknown_preset_and_a_missing_folder() {
         "{err}"
     );
 }
+
+#[test]
+fn mdd_and_obj_follow_the_documented_preset_too() {
+    let scene = scene();
+    let dir = tempfile::tempdir().unwrap();
+    let reference = dir.path().join("ref.pc2");
+    bake_to(&scene, &options(BakeFormat::Pc2, reference.clone(), None)).unwrap();
+    let frames = read_pc2(&reference).unwrap().frames;
+    // MDD for Unity: mirrored X (a raw cache), times from 0 s.
+    let mdd = dir.path().join("walk.mdd");
+    bake_to(
+        &scene,
+        &options(BakeFormat::Mdd, mdd.clone(), Some(Preset::Unity)),
+    )
+    .unwrap();
+    let cache = neural_cloth::io::export::read_mdd(&mdd).unwrap();
+    let (.., unity_pc2) = documented(Some(Preset::Unity));
+    for (got, want) in cache.frames.iter().zip(&frames) {
+        let want: Vec<Vec3> = want.iter().map(|&p| unity_pc2(p)).collect();
+        assert!(same_bits(got, &want), "MDD for Unity");
+    }
+    assert_eq!(cache.times_secs[0], 0.0);
+    // OBJ for Maya: centimetres, files numbered from frame 1; Unreal numbers from 0.
+    for (preset, first) in [(Preset::Maya, 1), (Preset::Unreal, 0)] {
+        let folder = dir.path().join(format!("walk-{preset}"));
+        bake_to(
+            &scene,
+            &BakeOptions {
+                include_body: false,
+                ..options(BakeFormat::Obj, folder.clone(), Some(preset))
+            },
+        )
+        .unwrap();
+        let (_, _, _, obj_map, _) = documented(Some(preset));
+        let stem = format!("walk-{preset}");
+        for (k, want) in frames.iter().enumerate() {
+            let file = folder.join(format!("{stem}_{:04}.obj", first + k));
+            let text = std::fs::read_to_string(&file).unwrap();
+            let got: Vec<Vec3> = text
+                .lines()
+                .filter_map(|l| l.strip_prefix("v "))
+                .map(|l| {
+                    let c: Vec<f32> = l.split(' ').map(|x| x.parse().unwrap()).collect();
+                    Vec3::new(c[0], c[1], c[2])
+                })
+                .collect();
+            let want: Vec<Vec3> = want.iter().map(|&p| obj_map(p)).collect();
+            assert!(same_bits(&got, &want), "{}", file.display());
+        }
+        assert_eq!(std::fs::read_dir(&folder).unwrap().count(), frames.len());
+    }
+}
