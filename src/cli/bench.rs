@@ -14,6 +14,9 @@ pub struct BenchArgs {
     /// A quick run (10K DoF only, fewer frames and steps) for smoke tests.
     #[arg(long)]
     pub quick: bool,
+    /// Only the physics term costs (burn against fused kernels), nothing else.
+    #[arg(long, conflicts_with = "quick")]
+    pub physics_only: bool,
     /// Also write the tables to this Markdown file (e.g. docs/BENCHMARKS.md).
     #[arg(long)]
     pub markdown: Option<PathBuf>,
@@ -21,7 +24,15 @@ pub struct BenchArgs {
 
 /// Runs `bench`.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
-    let options = if args.quick {
+    let options = if args.physics_only {
+        BenchOptions {
+            dofs: Vec::new(),
+            frames: 0,
+            train_batches: Vec::new(),
+            train_steps: 0,
+            physics: true,
+        }
+    } else if args.quick {
         BenchOptions {
             dofs: vec![10_000],
             frames: 10,

@@ -4,12 +4,14 @@
 //! Everything here is plain `f32` CPU code with no knowledge of scenes, files or learning;
 //! the upper layers (`scene`, `io`, `physics`, `model`) build on it.
 
+pub mod bucket_kdtree;
 pub mod kdtree;
 pub mod mesh;
 pub mod rotation;
 pub mod skinning;
 pub mod topology;
 
+pub use bucket_kdtree::BucketKdTree;
 pub use kdtree::KdTree;
 pub use mesh::{MeshError, MeshReport, TriMesh, safe_normalize};
 pub use rotation::{mat3_from_6d, rotation_to_6d, slerp_unit};

@@ -11,18 +11,21 @@ use std::sync::Arc;
 use burn::tensor::{DType, Device, Tensor, TensorData};
 use rayon::prelude::*;
 
-use crate::geometry::{KdTree, TriMesh, Vec3};
+use crate::geometry::{BucketKdTree, TriMesh, Vec3};
 use crate::scene::{Avatar, Pose};
 
 use super::PhysicsError;
 use super::tensors::{RestTensors, dot, per_sample, read_f32};
+
+/// Garment vertices per task of the batched query.
+const QUERY_CHUNK: usize = 256;
 
 /// A body mesh in one pose, ready for distance queries.
 #[derive(Clone, Debug)]
 pub struct PosedBody {
     positions: Vec<Vec3>,
     normals: Vec<Vec3>,
-    tree: KdTree,
+    tree: BucketKdTree,
 }
 
 impl PosedBody {
@@ -32,7 +35,7 @@ impl PosedBody {
         let mesh = TriMesh::new(positions, faces.to_vec())
             .map_err(|e| PhysicsError::InvalidBody(e.to_string()))?;
         let normals = mesh.vertex_normals();
-        let tree = KdTree::new(&mesh.positions);
+        let tree = BucketKdTree::new(&mesh.positions);
         Ok(Self {
             positions: mesh.positions,
             normals,
@@ -55,9 +58,10 @@ impl PosedBody {
         &self.normals
     }
 
-    /// Index of the body vertex nearest to `q` (0 for a non-finite query).
+    /// Index of the body vertex nearest to `q`, ties going to the lowest index (0 for a
+    /// non-finite query). Exact: the same vertex as a scan of every body vertex.
     pub fn nearest(&self, q: &Vec3) -> usize {
-        self.tree.nearest(q).map_or(0, |(i, _)| i as usize)
+        self.tree.nearest(q, None).map_or(0, |(i, _)| i as usize)
     }
 
     /// Signed distance estimate `n_b·(q - b)` to the nearest body vertex, in metres.
@@ -104,7 +108,8 @@ pub struct Contacts {
 
 impl Contacts {
     /// Queries `bodies` with the positions `x_flat` (`B·V·3` values, sample-major) and uploads
-    /// the result. One k-d tree query per vertex, in parallel.
+    /// the result. One exact k-d tree query per vertex (nearest body vertex, ties to the lowest
+    /// index), in parallel over chunks of vertices.
     pub fn query(
         bodies: &BodyBatch,
         x_flat: &[f32],
@@ -120,28 +125,34 @@ impl Contacts {
                 found: format!("{} values", x_flat.len()),
             });
         }
-        let found: Vec<[f32; 7]> = x_flat
-            .par_chunks_exact(3)
+        let mut points = vec![0.0f32; x_flat.len()];
+        let mut normals = vec![0.0f32; x_flat.len()];
+        let mut distances_m = vec![0.0f32; x_flat.len() / 3];
+        points
+            .par_chunks_mut(3 * QUERY_CHUNK)
+            .zip(normals.par_chunks_mut(3 * QUERY_CHUNK))
+            .zip(distances_m.par_chunks_mut(QUERY_CHUNK))
             .enumerate()
-            .map(|(k, q)| {
-                let body = &bodies.bodies[k / vertices.max(1)];
-                let q = Vec3::new(q[0], q[1], q[2]);
-                let i = body.nearest(&q);
-                let (p, n) = (body.positions[i], body.normals[i]);
-                [p.x, p.y, p.z, n.x, n.y, n.z, n.dot(&(q - p))]
-            })
-            .collect();
-        let column = |range: std::ops::Range<usize>| -> Tensor<3> {
-            let flat: Vec<f32> = found
-                .iter()
-                .flat_map(|f| f[range.clone()].iter().copied())
-                .collect();
+            .for_each(|(chunk, ((points, normals), distances))| {
+                let first = chunk * QUERY_CHUNK;
+                for (j, d) in distances.iter_mut().enumerate() {
+                    let k = first + j;
+                    let body = &bodies.bodies[k / vertices.max(1)];
+                    let q = Vec3::new(x_flat[3 * k], x_flat[3 * k + 1], x_flat[3 * k + 2]);
+                    let i = body.nearest(&q);
+                    let (p, n) = (body.positions[i], body.normals[i]);
+                    points[3 * j..3 * j + 3].copy_from_slice(&[p.x, p.y, p.z]);
+                    normals[3 * j..3 * j + 3].copy_from_slice(&[n.x, n.y, n.z]);
+                    *d = n.dot(&(q - p));
+                }
+            });
+        let upload = |flat: Vec<f32>| -> Tensor<3> {
             Tensor::from_data(TensorData::new(flat, [b, vertices, 3]), (device, dtype))
         };
         Ok(Self {
-            points: column(0..3),
-            normals: column(3..6),
-            distances_m: found.iter().map(|f| f[6]).collect(),
+            points: upload(points),
+            normals: upload(normals),
+            distances_m,
         })
     }
 
@@ -200,4 +211,184 @@ pub fn inside_fraction(
     let d = signed_distances(x, contacts);
     let inside = d.zeros_like().mask_fill(d.lower_elem(0.0), 1.0);
     Some(per_sample(inside * mask.clone()).div_scalar(colliding.max(1) as f64))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::KdTree;
+    use crate::geometry::bucket_kdtree::distance2;
+    use crate::physics::shapes::{tube, uv_sphere};
+    use crate::scene::procedural::{GarmentKind, MotionKind, builtin_garment, mannequin, motion};
+
+    /// Posed garments against posed bodies: the t-shirt and skirt on the mannequin along walk
+    /// and run frames, with millimetres of noise and every other sample squeezed into the body;
+    /// plus the cost benchmark's flared tube around a sphere.
+    fn cases() -> Vec<(String, BodyBatch, Vec<f32>, usize)> {
+        let avatar = mannequin().unwrap();
+        let mut out = Vec::new();
+        let mut s = 99u32;
+        let mut noise = move || {
+            s = s.wrapping_mul(1664525).wrapping_add(1013904223);
+            ((s >> 8) as f32 / (1u32 << 24) as f32 - 0.5) * 0.01
+        };
+        for kind in [GarmentKind::TShirt, GarmentKind::Skirt] {
+            let garment = builtin_garment(&avatar, kind, 3400, None).unwrap();
+            let mut bodies = Vec::new();
+            let mut x = Vec::new();
+            for m in [MotionKind::Walk, MotionKind::Run] {
+                let frames = motion(m, 30.0, 1.0).unwrap().frames;
+                for (f, pose) in frames.iter().step_by(7).enumerate() {
+                    bodies.push(Arc::new(PosedBody::from_avatar(&avatar, pose).unwrap()));
+                    let squeeze = if f % 2 == 1 { 0.93 } else { 1.0 };
+                    let hips = avatar
+                        .pose_vertices(pose)
+                        .iter()
+                        .fold(Vec3::zeros(), |a, p| a + p)
+                        / avatar.bind_mesh.positions.len() as f32;
+                    for p in garment.pose_vertices(&avatar, pose) {
+                        let mut q = p - hips;
+                        q.x *= squeeze;
+                        q.z *= squeeze;
+                        let q = q + hips;
+                        x.extend([q.x + noise(), q.y + noise(), q.z + noise()]);
+                    }
+                }
+            }
+            out.push((
+                kind.name().to_string(),
+                BodyBatch::new(bodies),
+                x,
+                garment.vertex_count(),
+            ));
+        }
+        let mesh = tube(Vec3::new(0.0, 1.0, 0.0), 0.22, 0.45, 0.25, -0.35, 81, 39);
+        let sphere = uv_sphere(Vec3::new(0.0, 1.0, 0.0), 0.32, 72, 96);
+        let body = Arc::new(PosedBody::new(sphere.positions, &sphere.faces).unwrap());
+        let x: Vec<f32> = (0..4)
+            .flat_map(|b| {
+                mesh.positions.iter().enumerate().flat_map(move |(i, p)| {
+                    let wobble = 0.01 * ((i * 7 + b * 13) as f32).sin();
+                    [p.x * (1.0 + wobble), p.y + wobble, p.z * (1.0 - wobble)]
+                })
+            })
+            .collect();
+        out.push((
+            "tube around a sphere".into(),
+            BodyBatch::new(vec![body; 4]),
+            x,
+            mesh.positions.len(),
+        ));
+        out
+    }
+
+    #[test]
+    fn contacts_equal_todays_query_wherever_the_energy_is_non_zero() {
+        let device = Device::flex();
+        let eps = crate::physics::FabricParams::default().collision_threshold_m;
+        for (name, bodies, x, v) in cases() {
+            let today: Vec<KdTree> = bodies
+                .bodies
+                .iter()
+                .map(|b| KdTree::new(&b.positions))
+                .collect();
+            let c = Contacts::query(&bodies, &x, v, &device, DType::F32).unwrap();
+            let points = read_f32(c.points.clone()).unwrap();
+            let normals = read_f32(c.normals.clone()).unwrap();
+            let (mut touching, mut differ) = (0, 0);
+            for (k, q) in x.chunks_exact(3).enumerate() {
+                let body = &bodies.bodies[k / v];
+                let q = Vec3::new(q[0], q[1], q[2]);
+                // Today's query: the k-d tree's first-found nearest vertex.
+                let old = today[k / v].nearest(&q).map_or(0, |(i, _)| i as usize);
+                let (p, n) = (body.positions[old], body.normals[old]);
+                let new = Vec3::new(points[3 * k], points[3 * k + 1], points[3 * k + 2]);
+                let new_n = Vec3::new(normals[3 * k], normals[3 * k + 1], normals[3 * k + 2]);
+                let d_old = n.dot(&(q - p));
+                if d_old < eps || c.distances_m[k] < eps {
+                    touching += 1;
+                    assert_eq!((new, new_n), (p, n), "{name}: vertex {k}: contact differs");
+                    assert_eq!(c.distances_m[k], d_old, "{name}: vertex {k}");
+                }
+                differ += usize::from(new != p);
+                // Everywhere: the brute-force nearest (ties to the lowest index).
+                let brute = body
+                    .positions
+                    .iter()
+                    .enumerate()
+                    .map(|(i, b)| (distance2(b, &q), i))
+                    .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+                    .map_or(0, |(_, i)| i);
+                assert_eq!(
+                    new, body.positions[brute],
+                    "{name}: vertex {k}: not the nearest"
+                );
+            }
+            assert!(
+                touching > 20,
+                "{name}: only {touching} vertices near the body"
+            );
+            assert_eq!(
+                differ, 0,
+                "{name}: {differ} contacts away from the body differ"
+            );
+        }
+    }
+
+    #[test]
+    #[ignore = "timing: run with --ignored --nocapture"]
+    fn query_cost_today_and_now() {
+        let device = Device::flex();
+        for (name, bodies, x, v) in cases() {
+            let n = x.len() / 3;
+            let today: Vec<KdTree> = bodies
+                .bodies
+                .iter()
+                .map(|b| KdTree::new(&b.positions))
+                .collect();
+            // Best of five, in this thread's CPU time: the machine may be shared.
+            let cpu_ns = || -> f64 {
+                std::fs::read_to_string("/proc/thread-self/schedstat")
+                    .ok()
+                    .and_then(|s| s.split_whitespace().next()?.parse().ok())
+                    .unwrap_or(0.0)
+            };
+            let time = |f: &dyn Fn(usize, &Vec3, Option<u32>) -> u32| {
+                (0..5)
+                    .map(|_| {
+                        let start = cpu_ns();
+                        let mut hint = None;
+                        for (k, q) in x.chunks_exact(3).enumerate() {
+                            let i = f(k, &Vec3::new(q[0], q[1], q[2]), hint);
+                            hint = (k % v != v - 1).then_some(i);
+                        }
+                        (cpu_ns() - start) / n as f64
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            };
+            let old = time(&|k, q, _| today[k / v].nearest(q).map_or(0, |r| r.0));
+            let new = time(&|k, q, _| {
+                bodies.bodies[k / v]
+                    .tree
+                    .nearest(q, None)
+                    .map_or(0, |r| r.0)
+            });
+            let seeded =
+                time(&|k, q, h| bodies.bodies[k / v].tree.nearest(q, h).map_or(0, |r| r.0));
+            let mut c = None;
+            let all = (0..5)
+                .map(|_| {
+                    let start = std::time::Instant::now();
+                    c = Contacts::query(&bodies, &x, v, &device, DType::F32).ok();
+                    start.elapsed().as_secs_f64() * 1e3
+                })
+                .fold(f64::INFINITY, f64::min);
+            let c = c.unwrap();
+            println!(
+                "{name}: {n} queries on {} bodies, ns/query: today {old:.0}, bucket tree \
+                 {new:.0}, seeded {seeded:.0}; Contacts::query {all:.2} ms",
+                c.distances_m.len() / v
+            );
+        }
+    }
 }

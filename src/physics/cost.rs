@@ -1,6 +1,8 @@
 //! Measures what each loss term costs (forward + backward) on a synthetic garment of a given
 //! number of degrees of freedom, against a baseline measured in the same run: the cheapest
-//! possible loss on the same input, `Σ x²`. `neural-cloth bench` prints this table.
+//! possible loss on the same input, `Σ x²`. Each static term is timed twice in the same run:
+//! as burn tensor code (the reference) and as a fused host kernel with its analytic gradient
+//! ([`super::fused`]). `neural-cloth bench` prints this table.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -10,20 +12,28 @@ use burn::tensor::{Device, Tensor, TensorData};
 use crate::geometry::{Topology, Vec3};
 
 use super::collision::{BodyBatch, Contacts, PosedBody};
+use super::fused::Kernel;
 use super::rest::GarmentRest;
 use super::shapes::{tube, uv_sphere};
 use super::tensors::read_f64;
-use super::{ClothModel, Effects, FabricParams, PhysicsError, PhysicsTerms};
+use super::{ClothModel, Effects, FabricParams, PhysicsError, PhysicsTerms, Term};
+
+/// A loss on positions `[B, V, 3]`, as timed.
+type Loss<'a> = &'a dyn Fn(&Tensor<3>) -> Result<Tensor<1>, PhysicsError>;
 
 /// Cost of one term.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct TermCost {
     /// What was measured.
     pub name: String,
-    /// Milliseconds per batch (median of the repeats).
+    /// Milliseconds per batch of the burn implementation (median of the repeats).
     pub ms: f64,
     /// `ms / baseline ms`.
     pub ratio: f64,
+    /// Milliseconds per batch of the fused kernel (None where there is none).
+    pub fused_ms: Option<f64>,
+    /// `ms / fused_ms`: how many times faster the fused kernel is.
+    pub speedup: Option<f64>,
 }
 
 /// A cost table.
@@ -47,11 +57,18 @@ impl CostReport {
     /// The table as Markdown.
     pub fn to_markdown(&self) -> String {
         let mut s = format!(
-            "{} DoF garment, batch {}, {} body vertices, {}; baseline Σx² forward+backward = {:.3} ms\n\n| term | ms / batch | × baseline |\n|---|---:|---:|\n",
+            "{} DoF garment, batch {}, {} body vertices, {}; baseline Σx² forward+backward = {:.3} ms\n\n| term | burn ms / batch | × baseline | fused ms / batch | burn / fused |\n|---|---:|---:|---:|---:|\n",
             self.dof, self.batch, self.body_vertices, self.device, self.baseline_ms
         );
         for t in &self.terms {
-            s += &format!("| {} | {:.3} | {:.1} |\n", t.name, t.ms, t.ratio);
+            let (fused, speedup) = match (t.fused_ms, t.speedup) {
+                (Some(f), Some(r)) => (format!("{f:.3}"), format!("{r:.1}")),
+                _ => ("-".into(), "-".into()),
+            };
+            s += &format!(
+                "| {} | {:.3} | {:.1} | {fused} | {speedup} |\n",
+                t.name, t.ms, t.ratio
+            );
         }
         s
     }
@@ -160,51 +177,134 @@ pub fn measure_term_costs(
             Ok(samples[samples.len() / 2])
         };
     let rt = bw.tensors();
-    let sum_terms =
-        |t: Vec<(super::Term, Tensor<1>)>| t.into_iter().map(|(_, v)| v.sum()).reduce(|a, b| a + b);
+    let sum_terms = |t: Vec<(Term, Tensor<1>)>| {
+        t.into_iter()
+            .map(|(_, v)| v.sum())
+            .reduce(|a, b| a + b)
+            .ok_or(PhysicsError::MissingBody)
+    };
+    // One fused kernel (or a pair) as a loss, through the same surrogate the trainer gets.
+    let fused = |terms: &PhysicsTerms,
+                 x: &Tensor<3>,
+                 kernels: &[(Term, Kernel)],
+                 contacts: Option<&Contacts>| {
+        sum_terms(terms.fused_energies(x, kernels, contacts)?)
+    };
     let baseline = time(&|x| Ok(x.clone().square().sum()))?;
-    let mut rows_out: Vec<(String, f64)> = Vec::new();
-    let mut add = |name: &str,
-                   f: &dyn Fn(&Tensor<3>) -> Result<Tensor<1>, PhysicsError>|
-     -> Result<(), PhysicsError> {
-        rows_out.push((name.to_string(), time(f)?));
+    let mut rows_out: Vec<(String, f64, Option<f64>)> = Vec::new();
+    let mut add = |name: &str, reference: Loss, fused: Option<Loss>| -> Result<(), PhysicsError> {
+        let fused_ms = fused.map(&time).transpose()?;
+        rows_out.push((name.to_string(), time(reference)?, fused_ms));
         Ok(())
     };
-    add("baraff-witkin stretch+shear", &|x| {
-        let (a, b) = super::energies::baraff_witkin(x, rt, 10.0, 1.0);
-        Ok((a + b).sum())
-    })?;
-    add("mass-spring", &|x| {
-        Ok(super::energies::mass_spring(x, ms.tensors(), 10.0).sum())
-    })?;
-    add("stvk", &|x| {
-        Ok(super::energies::stvk(x, stvk.tensors(), 20.9, 11.1).sum())
-    })?;
-    add("bending", &|x| {
-        Ok(super::energies::bending(x, rt, 2e-5).sum())
-    })?;
-    add("collision energy (contacts given)", &|x| {
-        Ok(super::collision::collision(x, &contacts, rt, 10.0, 0.004).sum())
-    })?;
-    add("collision query + upload + energy", &|x| {
-        let c = Contacts::for_prediction(&bodies, x, dtype)?;
-        Ok(super::collision::collision(x, &c, rt, 10.0, 0.004).sum())
-    })?;
-    add("gravity", &|x| Ok(super::energies::gravity(x, rt).sum()))?;
-    add("inertia", &|x| {
-        Ok(super::energies::inertia(x, &prev1, &prev2, rt, 1.0 / 30.0).sum())
-    })?;
-    add("pinning", &|x| {
-        bw.pinning(x, &prev1).ok_or(PhysicsError::MissingBody)
-    })?;
-    add("all static terms, collision on (static_losses)", &|x| {
-        bw.static_losses(x, Some(&bodies))?
-            .total()
-            .ok_or(PhysicsError::MissingBody)
-    })?;
-    add("all static terms, collision off", &|x| {
-        sum_terms(no_collision.static_energies(x, None)?).ok_or(PhysicsError::MissingBody)
-    })?;
+    let stretch = (Term::Stretch, Kernel::BaraffWitkinStretch { k: 10.0 });
+    let shear = (Term::Shear, Kernel::BaraffWitkinShear { k: 1.0 });
+    let collide = (
+        Term::Collision,
+        Kernel::Collision {
+            k: 10.0,
+            eps_m: f64::from(0.004f32),
+        },
+    );
+    add(
+        "baraff-witkin stretch+shear",
+        &|x| {
+            let (a, b) = super::energies::baraff_witkin(x, rt, 10.0, 1.0);
+            Ok((a + b).sum())
+        },
+        Some(&|x| fused(&bw, x, &[stretch, shear], None)),
+    )?;
+    add(
+        "mass-spring",
+        &|x| Ok(super::energies::mass_spring(x, ms.tensors(), 10.0).sum()),
+        Some(&|x| {
+            fused(
+                &ms,
+                x,
+                &[(Term::Stretch, Kernel::MassSpring { k: 10.0 })],
+                None,
+            )
+        }),
+    )?;
+    add(
+        "stvk",
+        &|x| Ok(super::energies::stvk(x, stvk.tensors(), 20.9, 11.1).sum()),
+        Some(&|x| {
+            let k = Kernel::Stvk {
+                lambda: f64::from(20.9f32),
+                mu: f64::from(11.1f32),
+            };
+            fused(&stvk, x, &[(Term::Stretch, k)], None)
+        }),
+    )?;
+    add(
+        "bending",
+        &|x| Ok(super::energies::bending(x, rt, 2e-5).sum()),
+        Some(&|x| {
+            let k = Kernel::Bending {
+                k: f64::from(2e-5f32),
+            };
+            fused(&bw, x, &[(Term::Bending, k)], None)
+        }),
+    )?;
+    add(
+        "collision energy (contacts given)",
+        &|x| Ok(super::collision::collision(x, &contacts, rt, 10.0, 0.004).sum()),
+        Some(&|x| fused(&bw, x, &[collide], Some(&contacts))),
+    )?;
+    add(
+        "collision query + upload + energy",
+        &|x| {
+            let c = Contacts::for_prediction(&bodies, x, dtype)?;
+            Ok(super::collision::collision(x, &c, rt, 10.0, 0.004).sum())
+        },
+        Some(&|x| {
+            let c = Contacts::for_prediction(&bodies, x, dtype)?;
+            fused(&bw, x, &[collide], Some(&c))
+        }),
+    )?;
+    add(
+        "gravity",
+        &|x| Ok(super::energies::gravity(x, rt).sum()),
+        Some(&|x| {
+            let g = fabric.gravity();
+            let k = Kernel::Gravity {
+                g: [g.x, g.y, g.z].map(f64::from),
+            };
+            fused(&bw, x, &[(Term::Gravity, k)], None)
+        }),
+    )?;
+    add(
+        "inertia",
+        &|x| Ok(super::energies::inertia(x, &prev1, &prev2, rt, 1.0 / 30.0).sum()),
+        None,
+    )?;
+    add(
+        "pinning",
+        &|x| bw.pinning(x, &prev1).ok_or(PhysicsError::MissingBody),
+        None,
+    )?;
+    let reference_bw = bw.clone().with_fused(false);
+    add(
+        "all static terms, collision on (static_losses)",
+        &|x| {
+            reference_bw
+                .static_losses(x, Some(&bodies))?
+                .total()
+                .ok_or(PhysicsError::MissingBody)
+        },
+        Some(&|x| {
+            bw.static_losses(x, Some(&bodies))?
+                .total()
+                .ok_or(PhysicsError::MissingBody)
+        }),
+    )?;
+    let reference_no_collision = no_collision.clone().with_fused(false);
+    add(
+        "all static terms, collision off",
+        &|x| sum_terms(reference_no_collision.static_energies(x, None)?),
+        Some(&|x| sum_terms(no_collision.static_energies(x, None)?)),
+    )?;
     let device_name = format!("{:?}", device.clone().without_autodiff());
     Ok(CostReport {
         dof: 3 * v,
@@ -214,8 +314,10 @@ pub fn measure_term_costs(
         baseline_ms: baseline,
         terms: rows_out
             .into_iter()
-            .map(|(name, ms)| TermCost {
+            .map(|(name, ms, fused_ms)| TermCost {
                 ratio: ms / baseline.max(1e-9),
+                speedup: fused_ms.map(|f| ms / f.max(1e-9)),
+                fused_ms,
                 name,
                 ms,
             })
