@@ -20,6 +20,14 @@ use neural_cloth::train::{
     RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer, TrainerHandle, load_trained, prepare,
 };
 
+// Crash safety (kill, damaged files, full disk) and resuming: `pipeline/*.rs`.
+#[path = "pipeline/corrupt.rs"]
+mod corrupt;
+#[path = "pipeline/fixture.rs"]
+mod fixture;
+#[path = "pipeline/resume.rs"]
+mod resume;
+
 const TINY: &str = r#"
 name = "tiny"
 training_fps = 30.0

@@ -168,6 +168,9 @@ fn run_bake(
 /// Runs `bake`.
 pub fn run(args: BakeArgs) -> anyhow::Result<()> {
     let trained = load_trained(&args.checkpoint)?;
+    for w in &trained.warnings {
+        eprintln!("warning: {w}");
+    }
     let fps = trained.meta.train.fps;
     let motion = find_motion(&trained.scene, &args.output.motion, fps)?;
     let options = options(&args.output, &motion, args.w);

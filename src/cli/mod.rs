@@ -5,6 +5,7 @@ mod app_launcher;
 mod bake;
 mod bench;
 mod compare;
+pub mod headless;
 mod inspect;
 mod report;
 mod screenshot;

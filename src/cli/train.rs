@@ -4,13 +4,15 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use anyhow::Context;
+use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use neural_cloth::io::scene_loader::{load_scene, load_scene_file};
 use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
 use neural_cloth::scene::config::{AvatarSource, GarmentSource, MotionSource, SceneConfig, Split};
-use neural_cloth::train::{BackendKind, RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer};
+use neural_cloth::train::{
+    BackendKind, RunDir, RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer, resume,
+};
 
 /// Arguments of `train`.
 #[derive(clap::Args, Debug)]
@@ -33,15 +35,23 @@ pub struct TrainArgs {
     /// Train for this many steps.
     #[arg(long)]
     pub steps: Option<u64>,
-    /// Compute backend.
-    #[arg(long, value_enum, default_value = "cpu")]
-    pub backend: Backend,
+    /// Compute backend (default: cpu; a resumed run keeps its own).
+    #[arg(long, value_enum)]
+    pub backend: Option<Backend>,
     /// Output folder of the run (default: a new folder under ./runs).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Continue the run in this folder from its newest checkpoint.
+    /// Continue the run in this folder from its newest checkpoint, on the scene and with the
+    /// settings it recorded (flags given again override the settings; a --scene that differs
+    /// from the recorded one is refused).
     #[arg(long, conflicts_with = "out")]
     pub resume: Option<PathBuf>,
+    /// Write a checkpoint every this many steps (default 200).
+    #[arg(long)]
+    pub checkpoint_every: Option<u64>,
+    /// Validate every this many steps (default 50).
+    #[arg(long)]
+    pub validate_every: Option<u64>,
     /// Windows per batch.
     #[arg(long)]
     pub batch: Option<usize>,
@@ -107,6 +117,25 @@ pub fn scene_from_args(
     garment: Option<&Path>,
     motions: Option<&Path>,
 ) -> anyhow::Result<(neural_cloth::scene::Scene, SceneConfig)> {
+    let (config, dir) = scene_config_from_args(scene, avatar, garment, motions)?;
+    let loaded = match scene {
+        Some(p) if avatar.is_none() && motions.is_none() => load_scene_file(p)?,
+        _ => load_scene(&config, &dir, scene.unwrap_or(Path::new("command line")))?,
+    };
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok((loaded.scene, config))
+}
+
+/// The scene description the arguments make (file paths absolute) and the folder its
+/// relative paths were resolved against.
+fn scene_config_from_args(
+    scene: Option<&Path>,
+    avatar: Option<&Path>,
+    garment: Option<&Path>,
+    motions: Option<&Path>,
+) -> anyhow::Result<(SceneConfig, PathBuf)> {
     let (mut config, dir) = match scene {
         Some(path) => {
             let config =
@@ -176,32 +205,69 @@ pub fn scene_from_args(
             *path = resolve(path);
         }
     }
-    let loaded = match scene {
-        Some(p) if avatar.is_none() && motions.is_none() => load_scene_file(p)?,
-        _ => load_scene(&config, &dir, scene.unwrap_or(Path::new("command line")))?,
-    };
-    for w in &loaded.warnings {
+    Ok((config, dir))
+}
+
+/// The scene a resumed run recorded and its training settings; refused when a scene given
+/// on the command line differs from the recorded one.
+fn resumed_scene(
+    dir: &Path,
+    args: &TrainArgs,
+) -> anyhow::Result<(neural_cloth::scene::Scene, SceneConfig, TrainConfig)> {
+    let run = RunDir::open(dir)?;
+    let meta = run.meta()?;
+    if args.scene.is_some() || args.avatar.is_some() || args.motions.is_some() {
+        let recorded = resume::recorded_config(&run)?;
+        let (given, _) = scene_config_from_args(
+            args.scene.as_deref(),
+            args.avatar.as_deref(),
+            args.garment.as_deref(),
+            args.motions.as_deref(),
+        )?;
+        if let Some(difference) = resume::scene_difference(&recorded, &given)? {
+            bail!(
+                "the given scene differs from the one the run was trained on ({difference}); \
+                 leave --scene out to resume on the run's own scene: {}",
+                resume::scene_path(&run).display()
+            );
+        }
+    }
+    let recorded = resume::recorded_scene(&run)?;
+    for w in &recorded.warnings {
         eprintln!("warning: {w}");
     }
-    Ok((loaded.scene, config))
+    Ok((recorded.scene, recorded.config, meta.train))
 }
 
 /// Runs `train`.
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
-    let (scene, scene_config) = scene_from_args(
-        args.scene.as_deref(),
-        args.avatar.as_deref(),
-        args.garment.as_deref(),
-        args.motions.as_deref(),
-    )?;
-    let mut train = TrainConfig {
-        fps: scene.training_fps,
-        ..Default::default()
+    let (scene, scene_config, mut train) = match &args.resume {
+        Some(dir) => resumed_scene(dir, &args)?,
+        None => {
+            let (scene, config) = scene_from_args(
+                args.scene.as_deref(),
+                args.avatar.as_deref(),
+                args.garment.as_deref(),
+                args.motions.as_deref(),
+            )?;
+            let train = TrainConfig {
+                fps: scene.training_fps,
+                ..Default::default()
+            };
+            (scene, config, train)
+        }
     };
-    train.backend = match args.backend {
-        Backend::Cpu => BackendKind::Cpu,
-        Backend::Wgpu => BackendKind::Wgpu,
-    };
+    match args.backend {
+        Some(Backend::Cpu) => train.backend = BackendKind::Cpu,
+        Some(Backend::Wgpu) => train.backend = BackendKind::Wgpu,
+        None => {}
+    }
+    if let Some(n) = args.checkpoint_every {
+        train.checkpoint_every = n;
+    }
+    if let Some(n) = args.validate_every {
+        train.validate_every = n;
+    }
     if let Some(b) = args.batch {
         train.batch_size = b;
     }
@@ -231,8 +297,12 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         train.predrape_secs = p;
     }
     model.basis_bias = !args.no_basis_bias;
-    train.centre_init = !args.no_centre_init;
-    train.static_from_still = !args.static_from_all;
+    if args.no_centre_init {
+        train.centre_init = false;
+    }
+    if args.static_from_all {
+        train.static_from_still = false;
+    }
     if let Some(f) = args.still_fraction {
         train.still_fraction = f;
     }
@@ -240,8 +310,11 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         train.dead_limit_pct = d;
     }
     model.validate()?;
-    train.max_steps = args.steps;
-    train.max_minutes = args.minutes;
+    // A resumed run goes on to the limits it recorded unless new ones are given.
+    if args.resume.is_none() || args.steps.is_some() || args.minutes.is_some() {
+        train.max_steps = args.steps;
+        train.max_minutes = args.minutes;
+    }
     if train.max_steps.is_none() && train.max_minutes.is_none() {
         train.max_minutes = Some(10.0);
         eprintln!("no --minutes or --steps given: training for 10 minutes");
@@ -371,6 +444,9 @@ pub fn eval(args: EvalArgs) -> anyhow::Result<()> {
         other => anyhow::bail!("unknown split '{other}' (train, validation, test)"),
     };
     let trained = neural_cloth::train::load_trained(&args.checkpoint)?;
+    for w in &trained.warnings {
+        eprintln!("warning: {w}");
+    }
     let report = neural_cloth::train::evaluate(&trained, split, args.w)?;
     println!("{}", serde_json::to_string_pretty(&report)?);
     // The official code's definitions, beside ours (on stderr: stdout stays pure JSON).

@@ -350,6 +350,26 @@ fn remedy_stall<S: Session>(session: &mut S) -> Result<String, String> {
     }
 }
 
+/// Writes the periodic checkpoint of `step`. A failure (a full disk, say) does not stop
+/// training: it is reported as a warning and the next checkpoint, `every` steps later, tries
+/// again; the previous checkpoints stay as they were.
+fn checkpoint_or_warn<S: Session>(
+    session: &mut S,
+    step: u64,
+    history: &MetricHistory,
+    every: u64,
+    emit: &Emitter,
+) {
+    match session.checkpoint(step, history) {
+        Ok(path) => emit.send(TrainEvent::Checkpoint { step, path }),
+        Err(e) => emit.send(TrainEvent::Warning(format!(
+            "the checkpoint of step {step} could not be written; training goes on and tries \
+             again at step {}: {e}",
+            step + every
+        ))),
+    }
+}
+
 fn run_loop<S: Session>(
     session: &mut S,
     config: LoopConfig,
@@ -483,8 +503,7 @@ fn run_loop<S: Session>(
             });
         }
         if step.is_multiple_of(config.checkpoint_every) {
-            let path = session.checkpoint(step, &history)?;
-            emit.send(TrainEvent::Checkpoint { step, path });
+            checkpoint_or_warn(session, step, &history, config.checkpoint_every, emit);
         }
     }
     if history.validation.last().is_none_or(|v| v.step != step)
@@ -502,7 +521,9 @@ fn run_loop<S: Session>(
             weights: Arc::new(weights),
         });
     }
-    let path = session.checkpoint(step, &history)?;
+    let path = session
+        .checkpoint(step, &history)
+        .map_err(|e| format!("the final checkpoint (step {step}) could not be written: {e}"))?;
     emit.send(TrainEvent::Checkpoint { step, path });
     Ok(RunSummary {
         run_dir: config.run_dir,

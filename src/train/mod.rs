@@ -5,9 +5,12 @@
 //! - [`config::TrainConfig`]: batch, window, rate, optimiser, schedule.
 //! - [`data`]: motions → descriptors, skinning matrices and windows.
 //! - [`session::NeuralSession`]: one optimiser step, validation, checkpoints.
-//! - [`run_dir`]: the run directory layout (resume, eval, bake).
+//! - [`run_dir`]: the run directory layout (resume, eval, bake); [`checkpoint`]: crash-safe
+//!   checkpoint folders, their verification and the fallback to an older one; [`resume`]: the
+//!   scene a run recorded.
 //! - [`handle`]: the thread loop, commands, events, divergence rollback.
 
+pub mod checkpoint;
 pub mod compare;
 pub mod config;
 pub mod data;
@@ -16,6 +19,7 @@ pub mod handle;
 pub mod losses;
 pub mod metrics;
 pub mod preflight;
+pub mod resume;
 pub mod run_dir;
 pub mod session;
 pub mod trained;
@@ -40,7 +44,7 @@ use crate::scene::config::{SceneConfig, Split};
 
 use data::Dataset;
 use handle::LoopConfig;
-use run_dir::garment_fingerprint;
+use run_dir::{avatar_fingerprint, garment_fingerprint};
 use session::{NeuralSession, SessionParts};
 
 /// Errors of the train layer.
@@ -67,6 +71,14 @@ pub enum TrainError {
     /// A checkpoint or run directory is unusable.
     #[error("checkpoint: {0}")]
     Checkpoint(String),
+    /// A file of a run folder is damaged, truncated or unreadable.
+    #[error("{reason}: {}", path.display())]
+    Corrupt {
+        /// What is wrong.
+        reason: String,
+        /// The file concerned.
+        path: PathBuf,
+    },
     /// The file system refused.
     #[error("{source}: {}", path.display())]
     File {
@@ -147,21 +159,37 @@ pub fn device_for(backend: BackendKind, autodiff: bool) -> Device {
 }
 
 /// Builds the session and loop settings of `setup` (synchronously; used by [`Trainer::spawn`]
-/// on the trainer thread and by tests).
+/// on the trainer thread and by tests). Resuming takes the model, descriptors and fabric the
+/// run recorded and continues from its newest checkpoint that loads (older ones are tried
+/// when the newest is damaged, with a warning); a run with checkpoints of which none loads is
+/// an error, never a fresh start.
 pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainError> {
     let TrainSetup {
         scene,
         scene_config,
         train,
         mut model,
-        descriptors,
+        mut descriptors,
         fabric,
         location,
     } = setup;
     train.validate()?;
-    let fabric = match fabric {
-        Some(f) => f,
-        None => FabricParams::from_table(&scene.fabric)?,
+    let resumed = match &location {
+        RunLocation::Resume(dir) => Some(open_for_resume(dir, &scene)?),
+        RunLocation::At(dir) => {
+            refuse_existing_run(dir)?;
+            None
+        }
+        RunLocation::NewUnder(_) => None,
+    };
+    if let Some((_, meta)) = &resumed {
+        model = meta.model.clone();
+        descriptors = meta.descriptors.clone();
+    }
+    let fabric = match (fabric, &resumed) {
+        (Some(f), _) => f,
+        (None, Some((_, meta))) => meta.fabric.clone(),
+        (None, None) => FabricParams::from_table(&scene.fabric)?,
     };
     fabric.validate()?;
     if !scene.effects.dynamics {
@@ -171,50 +199,19 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
     device.seed(train.seed);
     let avatar = Arc::new(scene.avatar);
     let garment = Arc::new(scene.garment);
-    let train_data = Dataset::new(
-        &avatar,
-        &scene.motions,
-        Split::Train,
-        train.fps,
-        &descriptors,
-        train.mirror_poses,
-    )?;
-    if train_data.is_empty() {
-        return Err(TrainError::Data("no motion in the train split".into()));
-    }
-    let validation = Dataset::new(
-        &avatar,
-        &scene.motions,
-        Split::Validation,
-        train.fps,
-        &descriptors,
-        false,
-    )?;
-    let (run, resume) = match &location {
-        RunLocation::NewUnder(parent) => (RunDir::fresh_under(parent)?, false),
-        RunLocation::At(dir) => (RunDir::create(dir)?, false),
-        RunLocation::Resume(dir) => (RunDir::open(dir)?, true),
+    let (train_data, validation) = datasets(&avatar, &scene.motions, &train, &descriptors)?;
+    let (run, resume) = match (resumed, &location) {
+        (Some((run, _)), _) => (run, true),
+        (None, RunLocation::NewUnder(parent)) => (RunDir::fresh_under(parent)?, false),
+        (None, RunLocation::At(dir) | RunLocation::Resume(dir)) => (RunDir::create(dir)?, false),
     };
-    let fingerprint = garment_fingerprint(&garment);
-    if resume {
-        let meta = run.meta()?;
-        if meta.garment_fingerprint != fingerprint
-            || meta.garment_vertices != garment.vertex_count()
-        {
-            return Err(TrainError::Checkpoint(format!(
-                "the run was trained on garment '{}' ({} vertices), not on '{}' ({} vertices): {}",
-                meta.garment_name,
-                meta.garment_vertices,
-                garment.name,
-                garment.vertex_count(),
-                run.root.display()
-            )));
-        }
-        model = meta.model;
-    }
-    let warnings = preflight::preflight_warnings(&avatar, &garment, &fabric);
+    let mut warnings = if resume { run.recover() } else { Vec::new() };
+    // A resumed run that never wrote a checkpoint starts over, initialised like a new one.
+    let has_checkpoint =
+        resume && (!run.checkpoint_steps().is_empty() || run.latest_json_step().is_some());
+    warnings.extend(preflight::preflight_warnings(&avatar, &garment, &fabric));
     let mut net = model.init(train_data.input_joints, garment.vertex_count(), &device)?;
-    if !resume && train.predrape_secs > 0.0 && model.basis_bias {
+    if !has_checkpoint && train.predrape_secs > 0.0 && model.basis_bias {
         let drape = warm_start::simulated_drape(
             &avatar,
             &garment,
@@ -230,7 +227,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
     let lbs = GarmentLbs::from_garment(&garment, avatar.skeleton.len(), &device)?;
     if !resume {
         let meta = RunMeta {
-            version: 1,
+            version: run_dir::RUN_VERSION,
             train: train.clone(),
             model: model.clone(),
             descriptors: descriptors.clone(),
@@ -238,9 +235,9 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
             effects: scene.effects,
             input_joints: train_data.input_joints,
             garment_vertices: garment.vertex_count(),
-            garment_fingerprint: fingerprint,
+            garment_fingerprint: garment_fingerprint(&garment),
             garment_name: garment.name.clone(),
-            avatar_fingerprint: Some(run_dir::avatar_fingerprint(&avatar)),
+            avatar_fingerprint: Some(avatar_fingerprint(&avatar)),
         };
         let scene_toml = scene_config
             .to_toml_string()
@@ -261,17 +258,14 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         run,
         init_std: model.init_std,
     });
-    if !resume && train.centre_init {
+    if !has_checkpoint && train.centre_init {
         session.centre_biases()?;
     }
-    let mut history = MetricHistory::default();
-    let mut start_step = 0;
-    if resume && let Some(step) = session.run_dir().latest_step() {
-        let state = session.load_checkpoint(step)?;
-        start_step = state.step;
-        history = session.run_dir().history();
-        history.truncate_after(start_step);
-    }
+    let (start_step, history) = if has_checkpoint {
+        resume_state(&mut session, &mut warnings)?
+    } else {
+        (0, MetricHistory::default())
+    };
     let loop_config = LoopConfig {
         run_dir: run_root,
         start_step,
@@ -286,4 +280,107 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         warnings,
     };
     Ok((session, loop_config))
+}
+
+/// The training and validation data of `motions`.
+fn datasets(
+    avatar: &crate::scene::Avatar,
+    motions: &[(crate::scene::Motion, Split)],
+    train: &TrainConfig,
+    descriptors: &DescriptorConfig,
+) -> Result<(Dataset, Dataset), TrainError> {
+    let train_data = Dataset::new(
+        avatar,
+        motions,
+        Split::Train,
+        train.fps,
+        descriptors,
+        train.mirror_poses,
+    )?;
+    if train_data.is_empty() {
+        return Err(TrainError::Data("no motion in the train split".into()));
+    }
+    let validation = Dataset::new(
+        avatar,
+        motions,
+        Split::Validation,
+        train.fps,
+        descriptors,
+        false,
+    )?;
+    Ok((train_data, validation))
+}
+
+/// Refuses to start a new run in a folder that already holds one (it would be overwritten).
+fn refuse_existing_run(dir: &Path) -> Result<(), TrainError> {
+    if dir.join("run.json").exists() {
+        return Err(TrainError::Checkpoint(format!(
+            "the folder already holds a run; resume it or choose another folder: {}",
+            dir.display()
+        )));
+    }
+    Ok(())
+}
+
+/// The run at `dir` and its description, refused when `scene` has another garment or avatar.
+fn open_for_resume(dir: &Path, scene: &Scene) -> Result<(RunDir, RunMeta), TrainError> {
+    let run = RunDir::open(dir)?;
+    let meta = run.meta()?;
+    let garment = &scene.garment;
+    if meta.garment_fingerprint != garment_fingerprint(garment)
+        || meta.garment_vertices != garment.vertex_count()
+    {
+        return Err(TrainError::Checkpoint(format!(
+            "the run was trained on garment '{}' ({} vertices), not on '{}' ({} vertices): {}",
+            meta.garment_name,
+            meta.garment_vertices,
+            garment.name,
+            garment.vertex_count(),
+            run.root.display()
+        )));
+    }
+    if meta
+        .avatar_fingerprint
+        .is_some_and(|f| f != avatar_fingerprint(&scene.avatar))
+    {
+        return Err(TrainError::Checkpoint(format!(
+            "the run was trained on another avatar than '{}': {}",
+            scene.avatar.name,
+            run.root.display()
+        )));
+    }
+    Ok((run, meta))
+}
+
+/// Loads the newest checkpoint of the session's run that loads and the metric history up to
+/// it; what had to be skipped is added to `warnings`.
+fn resume_state(
+    session: &mut NeuralSession,
+    warnings: &mut Vec<String>,
+) -> Result<(u64, MetricHistory), TrainError> {
+    let run = session.run_dir().clone();
+    let loaded = run
+        .newest_loadable(|step| session.load_checkpoint(step))?
+        .ok_or_else(|| {
+            TrainError::Checkpoint(format!("no checkpoint to resume: {}", run.root.display()))
+        })?;
+    warnings.extend(loaded.warnings);
+    let step = loaded.value.step;
+    let mut history = match run.try_history() {
+        Ok(h) => h,
+        Err(e) => {
+            warnings.push(format!("the metric history starts over: {e}"));
+            return Ok((step, MetricHistory::default()));
+        }
+    };
+    history.truncate_after(step);
+    if history.last_step() < step {
+        warnings.push(format!(
+            "the metric history ends at step {}, before the checkpoint's step {step}: the curves \
+             have a gap: {}",
+            history.last_step(),
+            run.root.join("metrics.json").display()
+        ));
+    }
+    Ok((step, history))
 }

@@ -9,13 +9,14 @@
 //! RUN/checkpoints/step-0000N/   model.bpk (burn record), optimizer.bpk, state.json
 //! ```
 //! Every file is written atomically (temporary + rename) and a checkpoint folder appears
-//! only when complete, so a crash never leaves a half-written checkpoint behind.
+//! only when complete, so a crash never leaves a half-written checkpoint behind; writing,
+//! verifying and falling back over checkpoints is [`super::checkpoint`].
 
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::io::export::atomic::{AtomicDir, write_atomic};
+use crate::io::export::atomic::write_atomic;
 use crate::model::{ClothNetConfig, DescriptorConfig};
 use crate::physics::{Effects, FabricParams};
 use crate::scene::{Avatar, Garment};
@@ -26,6 +27,8 @@ use super::metrics::MetricHistory;
 
 /// How many checkpoints to keep (older ones are deleted).
 pub const KEEP_CHECKPOINTS: usize = 3;
+/// The newest run folder format this program reads and writes ([`RunMeta::version`]).
+pub const RUN_VERSION: u32 = 1;
 
 /// Description of a run, written once at its start.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -185,8 +188,20 @@ impl RunDir {
     pub fn meta(&self) -> Result<RunMeta, TrainError> {
         let path = self.root.join("run.json");
         let bytes = std::fs::read(&path).map_err(|e| TrainError::io(e, &path))?;
-        serde_json::from_slice(&bytes)
-            .map_err(|e| TrainError::Checkpoint(format!("{e}: {}", path.display())))
+        let meta: RunMeta = serde_json::from_slice(&bytes).map_err(|e| TrainError::Corrupt {
+            reason: format!("unreadable run description ({e})"),
+            path: path.clone(),
+        })?;
+        if meta.version > RUN_VERSION {
+            return Err(TrainError::Corrupt {
+                reason: format!(
+                    "the run folder has format version {}, newer than this program reads ({RUN_VERSION})",
+                    meta.version
+                ),
+                path,
+            });
+        }
+        Ok(meta)
     }
 
     /// The scene description text.
@@ -202,86 +217,23 @@ impl RunDir {
             .join(format!("step-{step:08}"))
     }
 
-    /// Step of the newest complete checkpoint, if any.
-    pub fn latest_step(&self) -> Option<u64> {
-        let text = std::fs::read_to_string(self.root.join("latest.json")).ok()?;
-        let v: serde_json::Value = serde_json::from_str(&text).ok()?;
-        let step = v.get("step")?.as_u64()?;
-        self.checkpoint_path(step)
-            .join("model.bpk")
-            .is_file()
-            .then_some(step)
-    }
-
-    /// Writes a checkpoint folder atomically, then the history and `latest.json`, then prunes
-    /// old checkpoints. Returns the checkpoint folder.
-    pub fn write_checkpoint(
-        &self,
-        state: CheckpointState,
-        model_bytes: &[u8],
-        optimizer_bytes: &[u8],
-        history: &MetricHistory,
-    ) -> Result<PathBuf, TrainError> {
-        let path = self.checkpoint_path(state.step);
-        let _ = std::fs::remove_dir_all(&path);
-        let dir = AtomicDir::create(&path)?;
-        write_atomic(&dir.temp_path().join("model.bpk"), model_bytes)?;
-        write_atomic(&dir.temp_path().join("optimizer.bpk"), optimizer_bytes)?;
-        let state_json =
-            serde_json::to_vec_pretty(&state).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
-        write_atomic(&dir.temp_path().join("state.json"), &state_json)?;
-        let path = dir.commit()?;
-        let history_json =
-            serde_json::to_vec(history).map_err(|e| TrainError::Checkpoint(e.to_string()))?;
-        write_atomic(&self.root.join("metrics.json"), &history_json)?;
-        write_atomic(
-            &self.root.join("latest.json"),
-            format!("{{\"step\": {}}}\n", state.step).as_bytes(),
-        )?;
-        self.prune();
-        Ok(path)
-    }
-
-    /// Reads the model bytes, optimiser bytes and state of checkpoint `step`.
-    pub fn read_checkpoint(
-        &self,
-        step: u64,
-    ) -> Result<(Vec<u8>, Vec<u8>, CheckpointState), TrainError> {
-        let dir = self.checkpoint_path(step);
-        let read = |name: &str| {
-            let p = dir.join(name);
-            std::fs::read(&p).map_err(|e| TrainError::io(e, &p))
-        };
-        let state: CheckpointState = serde_json::from_slice(&read("state.json")?).map_err(|e| {
-            TrainError::Checkpoint(format!("{e}: {}", dir.join("state.json").display()))
-        })?;
-        Ok((read("model.bpk")?, read("optimizer.bpk")?, state))
-    }
-
-    /// The metric history saved with the newest checkpoint (empty when none).
+    /// The metric history saved with the newest checkpoint (empty when none or unreadable).
     pub fn history(&self) -> MetricHistory {
-        std::fs::read(self.root.join("metrics.json"))
-            .ok()
-            .and_then(|b| serde_json::from_slice(&b).ok())
-            .unwrap_or_default()
+        self.try_history().unwrap_or_default()
     }
 
-    fn prune(&self) {
-        let Ok(entries) = std::fs::read_dir(self.root.join("checkpoints")) else {
-            return;
+    /// The metric history saved with the newest checkpoint: empty when the run has none yet,
+    /// an error naming `metrics.json` when it cannot be read.
+    pub fn try_history(&self) -> Result<MetricHistory, TrainError> {
+        let path = self.root.join("metrics.json");
+        let bytes = match std::fs::read(&path) {
+            Ok(b) => b,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Default::default()),
+            Err(e) => return Err(TrainError::io(e, &path)),
         };
-        let mut steps: Vec<(u64, PathBuf)> = entries
-            .filter_map(|e| e.ok())
-            .filter_map(|e| {
-                let name = e.file_name().to_string_lossy().into_owned();
-                name.strip_prefix("step-")
-                    .and_then(|s| s.parse().ok())
-                    .map(|s| (s, e.path()))
-            })
-            .collect();
-        steps.sort_by_key(|(s, _)| std::cmp::Reverse(*s));
-        for (_, p) in steps.into_iter().skip(KEEP_CHECKPOINTS) {
-            let _ = std::fs::remove_dir_all(p);
-        }
+        serde_json::from_slice(&bytes).map_err(|e| TrainError::Corrupt {
+            reason: format!("unreadable metric history ({e})"),
+            path,
+        })
     }
 }

@@ -6,11 +6,11 @@ use std::path::Path;
 use burn::module::Module;
 use burn::tensor::Bytes;
 
-use crate::io::scene_loader::load_scene;
 use crate::model::{ClothNet, InferenceEngine, InferenceOptions, InferenceWeights};
 use crate::scene::Scene;
-use crate::scene::config::SceneConfig;
 
+use super::checkpoint::MODEL_FILE;
+use super::resume::recorded_scene;
 use super::run_dir::{RunDir, RunMeta, avatar_fingerprint, garment_fingerprint};
 use super::{BackendKind, TrainError, device_for};
 
@@ -28,6 +28,9 @@ pub struct TrainedModel {
     pub step: u64,
     /// The run directory.
     pub run: RunDir,
+    /// Problems met while loading (a damaged newer checkpoint skipped, scene warnings); the
+    /// CLI prints them, the app shows them.
+    pub warnings: Vec<String>,
 }
 
 impl TrainedModel {
@@ -69,7 +72,9 @@ impl TrainedModel {
 }
 
 /// Loads the newest checkpoint of the run at `run_dir` (a run directory, or a checkpoint folder
-/// inside one) with the scene it was trained on.
+/// inside one) with the scene it was trained on. A damaged newest checkpoint falls back to
+/// the previous complete one ([`TrainedModel::warnings`] says so); a run of which no
+/// checkpoint loads is an error naming the file.
 pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
     let root = if run_dir.join("run.json").is_file() {
         run_dir.to_path_buf()
@@ -83,10 +88,8 @@ pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
     };
     let run = RunDir::open(&root)?;
     let meta = run.meta()?;
-    let scene_path = root.join("scene.toml");
-    let config = SceneConfig::from_toml_str(&run.scene_toml()?)
-        .map_err(|e| TrainError::Checkpoint(format!("{e}: {}", scene_path.display())))?;
-    let scene = load_scene(&config, &root, &scene_path)?.scene;
+    let recorded = recorded_scene(&run)?;
+    let scene = recorded.scene;
     if garment_fingerprint(&scene.garment) != meta.garment_fingerprint {
         return Err(TrainError::Checkpoint(format!(
             "the garment changed since training: the scene's garment '{}' no longer matches \
@@ -108,26 +111,49 @@ pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
             root.display()
         )));
     }
-    let step = run
-        .latest_step()
-        .ok_or_else(|| TrainError::Checkpoint(format!("no checkpoint in {}", root.display())))?;
-    let (model_bytes, _, _) = run.read_checkpoint(step)?;
     let device = device_for(BackendKind::Cpu, false);
-    let model = meta
-        .model
-        .init(meta.input_joints, meta.garment_vertices, &device)?;
-    let record = burn::store::ModuleRecord::from_bytes(Bytes::from_bytes_vec(model_bytes))
-        .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
-    let model = model
-        .try_load_record(record)
-        .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
-    let weights = InferenceWeights::from_module(&model)?;
+    let loaded = run
+        .newest_loadable(|step| load_model(&run, &meta, step, &device))?
+        .ok_or_else(|| TrainError::Checkpoint(format!("no checkpoint in {}", root.display())))?;
+    let (model, weights) = loaded.value;
+    let mut warnings = recorded.warnings;
+    warnings.extend(loaded.warnings);
     Ok(TrainedModel {
         meta,
         scene,
         model,
         weights,
-        step,
+        step: loaded.step,
         run,
+        warnings,
     })
+}
+
+/// The network of checkpoint `step`, and its weights in the inference layout.
+fn load_model(
+    run: &RunDir,
+    meta: &RunMeta,
+    step: u64,
+    device: &burn::tensor::Device,
+) -> Result<(ClothNet, InferenceWeights), TrainError> {
+    run.read_state(step)?;
+    let path = run.checkpoint_path(step).join(MODEL_FILE);
+    let bytes = run.read_checkpoint_file(step, MODEL_FILE)?;
+    let damaged = |e: String| TrainError::Corrupt {
+        reason: format!("the network cannot be read from the checkpoint ({e})"),
+        path: path.clone(),
+    };
+    let model = meta
+        .model
+        .init(meta.input_joints, meta.garment_vertices, device)?;
+    let record = burn::store::ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes))
+        .map_err(|e| damaged(e.to_string()))?;
+    let model = model
+        .try_load_record(record)
+        .map_err(|e| damaged(e.to_string()))?;
+    let weights = InferenceWeights::from_module(&model)?;
+    weights
+        .validate()
+        .map_err(|e| damaged(format!("invalid weights: {e}")))?;
+    Ok((model, weights))
 }

@@ -1,0 +1,131 @@
+//! `train --resume` trains on the scene the run recorded and refuses a different `--scene`;
+//! a new run never overwrites an existing one; headless GPU use prints no display errors.
+
+use std::path::Path;
+use std::process::Command;
+
+use super::fixture::{small_run, snapshot};
+
+fn cli(args: &[&str], cwd: &Path) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_neural-cloth"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn resume_trains_on_the_recorded_scene_and_refuses_a_different_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    small_run(&run, 2);
+    // No --scene: the run's own tiny scene, not the built-in default one.
+    let (ok, log) = cli(&["train", "--resume", "run", "--steps", "3"], dir.path());
+    assert!(ok && log.contains("(from step 2)"), "{log}");
+    // The same scene given again is accepted.
+    std::fs::write(dir.path().join("tiny.toml"), super::TINY).unwrap();
+    let (ok, log) = cli(
+        &[
+            "train",
+            "--resume",
+            "run",
+            "--scene",
+            "tiny.toml",
+            "--steps",
+            "4",
+        ],
+        dir.path(),
+    );
+    assert!(ok && log.contains("(from step 3)"), "{log}");
+    // Another one is refused, naming the difference; the run is left as it was.
+    std::fs::write(
+        dir.path().join("other.toml"),
+        super::TINY.replace("resolution = 400", "resolution = 500"),
+    )
+    .unwrap();
+    let before = snapshot(&run);
+    let (ok, log) = cli(
+        &[
+            "train",
+            "--resume",
+            "run",
+            "--scene",
+            "other.toml",
+            "--steps",
+            "5",
+        ],
+        dir.path(),
+    );
+    assert!(!ok, "{log}");
+    assert!(
+        log.contains("garment.resolution is 400 in the run, 500 in the given scene"),
+        "{log}"
+    );
+    assert!(log.trim_end().ends_with("run/scene.toml"), "{log}");
+    assert!(snapshot(&run) == before, "the run changed");
+}
+
+#[test]
+fn a_new_run_into_a_folder_holding_a_run_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    small_run(&run, 1);
+    std::fs::write(dir.path().join("tiny.toml"), super::TINY).unwrap();
+    let before = snapshot(&run);
+    let (ok, log) = cli(
+        &[
+            "train",
+            "--scene",
+            "tiny.toml",
+            "--steps",
+            "1",
+            "--out",
+            "run",
+        ],
+        dir.path(),
+    );
+    assert!(!ok && log.contains("already holds a run"), "{log}");
+    assert!(snapshot(&run) == before, "the run changed");
+}
+
+/// Mesa's Vulkan device-selection layer connects to Wayland at every adapter enumeration;
+/// without `XDG_RUNTIME_DIR` libwayland complains on stderr. Headless commands turn the
+/// layer off, so training on the GPU backend prints nothing of the kind.
+#[test]
+fn gpu_training_without_a_desktop_session_prints_no_display_error() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("tiny.toml"), super::TINY).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_neural-cloth"))
+        .args([
+            "train",
+            "--scene",
+            "tiny.toml",
+            "--steps",
+            "0",
+            "--batch",
+            "2",
+        ])
+        .args([
+            "--backend",
+            "wgpu",
+            "--predrape-secs",
+            "0",
+            "--no-centre-init",
+        ])
+        .args(["--out", "gpu"])
+        .current_dir(dir.path())
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("NODEVICE_SELECT")
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&out.stderr);
+    // Before the fix this run printed the libwayland error four times on this machine.
+    assert!(!log.contains("XDG_RUNTIME_DIR"), "{log}");
+    if !out.status.success() {
+        eprintln!("no GPU adapter here: the run stopped early: {log}");
+    }
+}
