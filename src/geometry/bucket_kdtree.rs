@@ -124,7 +124,11 @@ impl BucketKdTree {
     #[inline(always)]
     fn bound(&self, n: u32, q: &Vec3) -> f32 {
         let node = &self.nodes[n as usize];
-        let gap = |a: usize| (node.lo[a] - q[a]).max(q[a] - node.hi[a]).max(0.0);
+        let gap = |a: usize| {
+            let (below, above) = (node.lo[a] - q[a], q[a] - node.hi[a]);
+            let g = if below > above { below } else { above };
+            if g > 0.0 { g } else { 0.0 }
+        };
         let (gx, gy, gz) = (gap(0), gap(1), gap(2));
         gx * gx + gy * gy + gz * gz
     }
@@ -190,13 +194,18 @@ impl BucketKdTree {
             &self.zs[start..end],
         );
         let ids = &self.ids[start..end];
-        let mut d2 = [0.0f32; LEAF];
+        let mut d2 = [f32::NAN; LEAF];
         for (((d, x), y), z) in d2.iter_mut().zip(xs).zip(ys).zip(zs) {
             let (dx, dy, dz) = (x - q.x, y - q.y, z - q.z);
             *d = dx * dx + dy * dy + dz * dz;
         }
+        // The leaf's smallest distance (NaN ignored), then its lowest index at that distance.
+        let m = d2.iter().fold(f32::INFINITY, |m, &d| m.min(d));
+        if m > best.1 {
+            return;
+        }
         for (&d, &id) in d2.iter().zip(ids) {
-            if d < best.1 || (d == best.1 && id < best.0) || (best.0 == u32::MAX && !d.is_nan()) {
+            if d == m && (d < best.1 || id < best.0) {
                 *best = (id, d);
             }
         }

@@ -9,7 +9,9 @@ use std::time::Instant;
 
 use burn::tensor::{Device, Tensor, TensorData};
 
-use crate::geometry::{Topology, Vec3};
+use rayon::prelude::*;
+
+use crate::geometry::{KdTree, Topology, Vec3};
 
 use super::collision::{BodyBatch, Contacts, PosedBody};
 use super::fused::Kernel;
@@ -57,7 +59,7 @@ impl CostReport {
     /// The table as Markdown.
     pub fn to_markdown(&self) -> String {
         let mut s = format!(
-            "{} DoF garment, batch {}, {} body vertices, {}; baseline Σx² forward+backward = {:.3} ms\n\n| term | burn ms / batch | × baseline | fused ms / batch | burn / fused |\n|---|---:|---:|---:|---:|\n",
+            "{} DoF garment, batch {}, {} body vertices, {}; baseline Σx² forward+backward = {:.3} ms\n\nReference: the burn tensor code of each term, and in the query rows the k-d tree query of before (first-found nearest vertex). Fused: the host kernel with its analytic gradient, handed to burn through the surrogate, and the exact bucketed query.\n\n| term | reference ms / batch | × baseline | fused ms / batch | reference / fused |\n|---|---:|---:|---:|---:|\n",
             self.dof, self.batch, self.body_vertices, self.device, self.baseline_ms
         );
         for t in &self.terms {
@@ -72,6 +74,44 @@ impl CostReport {
         }
         s
     }
+}
+
+/// The collision query as it was before [`crate::geometry::BucketKdTree`]: one first-found
+/// k-d tree query per vertex (`trees[b]` over body `b`'s vertices), in parallel, then upload.
+fn reference_contacts(
+    bodies: &BodyBatch,
+    trees: &[KdTree],
+    x: &Tensor<3>,
+    dtype: burn::tensor::DType,
+) -> Result<Contacts, PhysicsError> {
+    let [b, v, _] = x.dims();
+    let flat = super::tensors::read_f32(x.clone().detach())?;
+    let found: Vec<[f32; 7]> = flat
+        .par_chunks_exact(3)
+        .enumerate()
+        .map(|(k, q)| {
+            let body = &bodies.bodies[k / v.max(1)];
+            let q = Vec3::new(q[0], q[1], q[2]);
+            let i = trees[k / v.max(1)]
+                .nearest(&q)
+                .map_or(0, |(i, _)| i as usize);
+            let (p, n) = (body.positions()[i], body.normals()[i]);
+            [p.x, p.y, p.z, n.x, n.y, n.z, n.dot(&(q - p))]
+        })
+        .collect();
+    let device = x.device();
+    let column = |range: std::ops::Range<usize>| -> Tensor<3> {
+        let flat: Vec<f32> = found
+            .iter()
+            .flat_map(|f| f[range.clone()].iter().copied())
+            .collect();
+        Tensor::from_data(TensorData::new(flat, [b, v, 3]), (&device, dtype))
+    };
+    Ok(Contacts {
+        points: column(0..3),
+        normals: column(3..6),
+        distances_m: found.iter().map(|f| f[6]).collect(),
+    })
 }
 
 /// Measures every term at about `dof` degrees of freedom (a flared tube around a sphere) with
@@ -252,10 +292,25 @@ pub fn measure_term_costs(
         &|x| Ok(super::collision::collision(x, &contacts, rt, 10.0, 0.004).sum()),
         Some(&|x| fused(&bw, x, &[collide], Some(&contacts))),
     )?;
+    // Today's query as it was before the bucketed tree: one first-found k-d tree query per
+    // vertex, the reference of the query rows.
+    let trees: Vec<KdTree> = bodies
+        .bodies
+        .iter()
+        .map(|b| KdTree::new(b.positions()))
+        .collect();
+    let reference_query = |x: &Tensor<3>| reference_contacts(&bodies, &trees, x, dtype);
+    // The query alone (its loss only touches `x` so that the backward pass has a graph).
+    let touch = |x: &Tensor<3>, c: Contacts| x.clone().sum().mul_scalar(0.0) + c.points.sum();
+    add(
+        "collision query + upload (no energy)",
+        &|x| Ok(touch(x, reference_query(x)?)),
+        Some(&|x| Ok(touch(x, Contacts::for_prediction(&bodies, x, dtype)?))),
+    )?;
     add(
         "collision query + upload + energy",
         &|x| {
-            let c = Contacts::for_prediction(&bodies, x, dtype)?;
+            let c = reference_query(x)?;
             Ok(super::collision::collision(x, &c, rt, 10.0, 0.004).sum())
         },
         Some(&|x| {
@@ -289,7 +344,7 @@ pub fn measure_term_costs(
         "all static terms, collision on (static_losses)",
         &|x| {
             reference_bw
-                .static_losses(x, Some(&bodies))?
+                .static_losses_with(x, Some(&reference_query(x)?))?
                 .total()
                 .ok_or(PhysicsError::MissingBody)
         },

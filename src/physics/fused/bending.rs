@@ -4,56 +4,50 @@
 //! `atan2(sin(θ-θ̄), cos(θ-θ̄))`, and collapsed hinges (`sin² + cos² < 1e-12`) contributing a
 //! zero angle change with zero gradient.
 //!
-//! Normals are recomputed per hinge rather than stored per face: two cross products per hinge
-//! cost less than a scratch array of face normals and its second pass, and keep the kernel free
-//! of per-sample buffers beyond the gradient.
+//! Three passes over one sample, with a reused scratch of `6F` values: the scaled normal of
+//! every face; per hinge, the energy and the gradient with respect to the two normals (summed
+//! per face) and the hinge edge; per face, the normal's gradient pulled back to its corners.
+//! Each face is thus handled once, not once per hinge it belongs to.
 
 use crate::physics::energies::bending::COLLAPSED;
 use crate::physics::rest::GarmentRest;
 
 use super::{Real, add_to, axpy, cross, dot, scale, sub, vertex};
 
-/// Corners, `x1 - x0`, `x2 - x0` and the scaled normal `s (x1 - x0) × (x2 - x0)` of face `f`.
+/// Corners, `x1 - x0` and `x2 - x0` of face `f`.
 #[inline(always)]
-fn face_normal<T: Real>(
-    rest: &GarmentRest,
-    x: &[T],
-    f: usize,
-) -> ([usize; 3], [f64; 3], [f64; 3], [f64; 3]) {
+fn face_edges<T: Real>(rest: &GarmentRest, x: &[T], f: usize) -> ([usize; 3], [f64; 3], [f64; 3]) {
     let corners = rest.faces[f].map(|i| i as usize);
     let x0 = vertex(x, corners[0]);
     let a = sub(vertex(x, corners[1]), x0);
     let b = sub(vertex(x, corners[2]), x0);
-    let n = scale(cross(a, b), rest.face_normal_scale[f]);
-    (corners, a, b, n)
+    (corners, a, b)
 }
 
-/// Pulls the gradient `gn` of a scaled face normal back to the face's corners.
 #[inline(always)]
-fn add_normal_gradient(
-    g: &mut [f64],
-    corners: [usize; 3],
-    a: [f64; 3],
-    b: [f64; 3],
-    gn: [f64; 3],
-    s: f64,
-) {
-    // n = s a × b: δn = s (δa × b + a × δb), so ∂/∂a = s b × gn and ∂/∂b = s gn × a.
-    let gns = scale(gn, s);
-    let ga = cross(b, gns);
-    let gb = cross(gns, a);
-    add_to(g, corners[1], ga, 1.0);
-    add_to(g, corners[2], gb, 1.0);
-    add_to(
-        g,
-        corners[0],
-        [ga[0] + gb[0], ga[1] + gb[1], ga[2] + gb[2]],
-        -1.0,
-    );
+fn get3(v: &[f64], i: usize) -> [f64; 3] {
+    [v[3 * i], v[3 * i + 1], v[3 * i + 2]]
 }
 
-/// Bending energy of one sample, its gradient added to `g`.
-pub fn bending<T: Real>(rest: &GarmentRest, k: f64, x: &[T], g: &mut [f64]) -> f64 {
+/// Bending energy of one sample, its gradient added to `g`; `scratch` is resized to `6F`
+/// (face normals, then their gradients).
+pub fn bending<T: Real>(
+    rest: &GarmentRest,
+    k: f64,
+    x: &[T],
+    g: &mut [f64],
+    scratch: &mut Vec<f64>,
+) -> f64 {
+    let nf = rest.faces.len();
+    scratch.clear();
+    scratch.resize(6 * nf, 0.0);
+    let (normals, gnormals) = scratch.split_at_mut(3 * nf);
+    // Pass 1: scaled face normals s (x1 - x0) × (x2 - x0).
+    for (f, n) in normals.chunks_exact_mut(3).enumerate() {
+        let (_, a, b) = face_edges(rest, x, f);
+        n.copy_from_slice(&scale(cross(a, b), rest.face_normal_scale[f]));
+    }
+    // Pass 2: hinges.
     let eps2 = rest.edge_eps2_m2;
     let mut e = 0.0;
     for h in 0..rest.hinges.len() {
@@ -64,8 +58,7 @@ pub fn bending<T: Real>(rest: &GarmentRest, k: f64, x: &[T], g: &mut [f64]) -> f
         let [e0, e1, ..] = rest.hinges[h].map(|i| i as usize);
         let [f0, f1] = rest.hinge_faces[h].map(|f| f as usize);
         let (rc, rs) = (rest.hinge_rest_cos[h], rest.hinge_rest_sin[h]);
-        let (c0, a0, b0, n0) = face_normal(rest, x, f0);
-        let (c1, a1, b1, n1) = face_normal(rest, x, f1);
+        let (n0, n1) = (get3(normals, f0), get3(normals, f1));
         let edge = sub(vertex(x, e1), vertex(x, e0));
         let l = (dot(edge, edge) + eps2).sqrt();
         let u = scale(edge, 1.0 / l);
@@ -85,14 +78,31 @@ pub fn bending<T: Real>(rest: &GarmentRest, k: f64, x: &[T], g: &mut [f64]) -> f
         let gsin = gy * rc + gx * rs;
         let gcos = gx * rc - gy * rs;
         // sin = (n0 × n1)·u = n0·(n1 × u) = n1·(u × n0); cos = n0·n1.
-        let gn0 = axpy(scale(cross(n1, u), gsin), gcos, n1);
-        let gn1 = axpy(scale(cross(u, n0), gsin), gcos, n0);
+        add_to(gnormals, f0, axpy(scale(cross(n1, u), gsin), gcos, n1), 1.0);
+        add_to(gnormals, f1, axpy(scale(cross(u, n0), gsin), gcos, n0), 1.0);
         let gu = scale(n0xn1, gsin);
         let gedge = scale(axpy(gu, -dot(u, gu), u), 1.0 / l);
         add_to(g, e1, gedge, 1.0);
         add_to(g, e0, gedge, -1.0);
-        add_normal_gradient(g, c0, a0, b0, gn0, rest.face_normal_scale[f0]);
-        add_normal_gradient(g, c1, a1, b1, gn1, rest.face_normal_scale[f1]);
+    }
+    // Pass 3: n = s a × b, so δn = s (δa × b + a × δb): ∂/∂a = s b × gn, ∂/∂b = s gn × a.
+    for f in 0..nf {
+        let gn = get3(gnormals, f);
+        if gn == [0.0; 3] {
+            continue;
+        }
+        let (corners, a, b) = face_edges(rest, x, f);
+        let gns = scale(gn, rest.face_normal_scale[f]);
+        let ga = cross(b, gns);
+        let gb = cross(gns, a);
+        add_to(g, corners[1], ga, 1.0);
+        add_to(g, corners[2], gb, 1.0);
+        add_to(
+            g,
+            corners[0],
+            [ga[0] + gb[0], ga[1] + gb[1], ga[2] + gb[2]],
+            -1.0,
+        );
     }
     k * e
 }

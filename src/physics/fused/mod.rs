@@ -224,14 +224,26 @@ struct Sample<'a, T> {
     contacts: Option<(&'a [f32], &'a [f32])>,
 }
 
-/// Runs one kernel on one sample, accumulating its gradient into `g` (zeroed, `V·3`).
-fn run<T: Real>(kernel: &Kernel, rest: &GarmentRest, s: &Sample<'_, T>, g: &mut [f64]) -> f64 {
+/// Runs one kernel on one sample, accumulating its gradient into `g` (zeroed, `V·3`); kernels
+/// that need more scratch take it from `pool`.
+fn run<T: Real>(
+    kernel: &Kernel,
+    rest: &GarmentRest,
+    s: &Sample<'_, T>,
+    g: &mut [f64],
+    pool: &ScratchPool,
+) -> f64 {
     match *kernel {
         Kernel::MassSpring { k } => membrane::mass_spring(rest, k, s.x, g),
         Kernel::BaraffWitkinStretch { k } => membrane::baraff_witkin_stretch(rest, k, s.x, g),
         Kernel::BaraffWitkinShear { k } => membrane::baraff_witkin_shear(rest, k, s.x, g),
         Kernel::Stvk { lambda, mu } => membrane::stvk(rest, lambda, mu, s.x, g),
-        Kernel::Bending { k } => bending::bending(rest, k, s.x, g),
+        Kernel::Bending { k } => {
+            let mut scratch = pool.take(0);
+            let e = bending::bending(rest, k, s.x, g, &mut scratch);
+            pool.give(scratch);
+            e
+        }
         Kernel::Collision { k, eps_m } => match s.contacts {
             Some((points, normals)) => {
                 collision::collision(rest, k, eps_m, s.x, points, normals, g)
@@ -293,7 +305,7 @@ pub fn evaluate<T: Real>(
                 contacts: contacts.map(|c| (&c.points[range.clone()], &c.normals[range.clone()])),
             };
             let mut g = pool.take(n3);
-            let e = run(&kernels[t], rest, &sample, &mut g);
+            let e = run(&kernels[t], rest, &sample, &mut g, pool);
             for (o, v) in out.iter_mut().zip(&g) {
                 *o = T::from_f64(*v);
             }

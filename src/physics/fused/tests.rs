@@ -461,3 +461,91 @@ fn shape_errors_are_typed() {
     let rest = GarmentRest::new(&single, &Topology::new(&single), &[], &[], 0.15).unwrap();
     assert!(evaluate(&rest, &every_kernel()[..1], &[0.0f64; 9], 0, None, &pool).is_err());
 }
+
+#[test]
+#[ignore = "timing: run with --ignored --nocapture"]
+fn kernel_cost_per_sample() {
+    // This thread's CPU time (the machine may be shared), best of 5 runs of 40.
+    let cpu_ns = || -> f64 {
+        std::fs::read_to_string("/proc/thread-self/schedstat")
+            .ok()
+            .and_then(|s| s.split_whitespace().next()?.parse().ok())
+            .unwrap_or(0.0)
+    };
+    let mesh =
+        crate::physics::shapes::tube(Vec3::new(0.0, 1.0, 0.0), 0.31, 0.45, 0.25, -0.35, 81, 39);
+    let rest = GarmentRest::new(&mesh, &Topology::new(&mesh), &[], &[], 0.15).unwrap();
+    let x: Vec<f32> = mesh
+        .positions
+        .iter()
+        .enumerate()
+        .flat_map(|(i, p)| {
+            let w = 0.01 * ((i * 7) as f32).sin();
+            [p.x * (1.0 + w), p.y + w, p.z * (1.0 - w)]
+        })
+        .collect();
+    let contacts = HostContacts {
+        points: x.iter().map(|v| v * 0.99).collect(),
+        normals: x.iter().map(|_| 0.577).collect(),
+    };
+    let mut g = vec![0.0; x.len()];
+    let pool = ScratchPool::default();
+    println!(
+        "{} vertices, {} faces, {} hinges",
+        rest.vertex_count(),
+        rest.faces.len(),
+        rest.hinges.len()
+    );
+    for kernel in every_kernel() {
+        let s = Sample {
+            x: &x,
+            contacts: Some((&contacts.points, &contacts.normals)),
+        };
+        let best = (0..5)
+            .map(|_| {
+                let start = cpu_ns();
+                for _ in 0..40 {
+                    g.iter_mut().for_each(|v| *v = 0.0);
+                    std::hint::black_box(run(&kernel, &rest, &s, &mut g, &pool));
+                }
+                (cpu_ns() - start) / 40.0
+            })
+            .fold(f64::INFINITY, f64::min);
+        println!("{kernel:?}: {:.3} ms per sample", best * 1e-6);
+    }
+}
+
+#[test]
+fn fused_terms_match_the_reference_on_wgpu() {
+    use burn::tensor::DeviceKind;
+    let device = Device::wgpu(DeviceKind::DefaultDevice).autodiff();
+    let case = random_case(31);
+    let fabric = FabricParams::default();
+    let effects = Effects {
+        collision: false,
+        ..all_effects()
+    };
+    let terms =
+        PhysicsTerms::from_rest(case.rest.clone(), &fabric, &effects, &device, DType::F32).unwrap();
+    let total = |t: &PhysicsTerms| {
+        let x = tensor(&case.x, case.batch, &device, DType::F32).require_grad();
+        let e = t
+            .static_energies(&x, None)
+            .unwrap()
+            .into_iter()
+            .map(|(_, e)| e.sum())
+            .reduce(|a, b| a + b)
+            .unwrap();
+        let value = read_f64(e.clone().detach()).unwrap()[0];
+        let g = read_f64(x.grad(&e.backward()).unwrap()).unwrap();
+        (value, g)
+    };
+    let (fv, fg) = total(&terms);
+    let (rv, rg) = total(&terms.clone().with_fused(false));
+    eprintln!("wgpu: fused {fv} reference {rv}");
+    assert!((fv - rv).abs() <= 1e-4 * rv.abs());
+    let scale = max_abs(&rg);
+    for (a, b) in fg.iter().zip(&rg) {
+        assert!((a - b).abs() <= 1e-3 * scale, "{a} vs {b}");
+    }
+}
