@@ -23,6 +23,10 @@ use neural_cloth::train::{
 // Crash safety (kill, damaged files, full disk) and resuming: `pipeline/*.rs`.
 #[path = "pipeline/corrupt.rs"]
 mod corrupt;
+#[path = "pipeline/crash.rs"]
+mod crash;
+#[path = "pipeline/disk_full.rs"]
+mod disk_full;
 #[path = "pipeline/fixture.rs"]
 mod fixture;
 #[path = "pipeline/resume.rs"]

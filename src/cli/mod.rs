@@ -36,7 +36,7 @@ pub enum Command {
         file: PathBuf,
     },
     /// Train a model on a scene headless (default: the built-in scene).
-    Train(train::TrainArgs),
+    Train(Box<train::TrainArgs>),
     /// Print the §4.2 metrics of a trained model on its scene's test split.
     Eval(train::EvalArgs),
     /// Bake a motion with a trained model into PC2, MDD, OBJ sequence, USD or glTF.
@@ -73,7 +73,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             })
         }
         Some(Command::Inspect { file }) => inspect::run(&file),
-        Some(Command::Train(args)) => train::run(args),
+        Some(Command::Train(args)) => train::run(*args),
         Some(Command::Eval(args)) => train::eval(args),
         Some(Command::Bake(args)) => bake::run(args),
         Some(Command::Simulate(args)) => bake::simulate(args),
@@ -81,5 +81,36 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Bench(args)) => bench::run(args),
         Some(Command::Report(args)) => report::run(args),
         Some(Command::Screenshot(args)) => screenshot::run(args),
+    }
+}
+
+/// The text of an error for the terminal: the error and each cause in its chain, leaving out a
+/// cause whose text the message already holds (our error types put their source's text, then
+/// the file path, in their own message: printed again it would repeat, after the path).
+pub fn error_text(error: &anyhow::Error) -> String {
+    let mut text = error.to_string();
+    for cause in error.chain().skip(1) {
+        let cause = cause.to_string();
+        if !text.contains(&cause) {
+            text = format!("{text}: {cause}");
+        }
+    }
+    text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cause_already_in_the_message_is_not_repeated() {
+        let io = std::io::Error::other("No space left on device");
+        let e = anyhow::Error::from(neural_cloth::train::TrainError::io(
+            io,
+            std::path::Path::new("/disk/run.json"),
+        ));
+        assert_eq!(error_text(&e), "No space left on device: /disk/run.json");
+        let e = anyhow::Error::from(std::io::Error::other("gone")).context("reading x.toml");
+        assert_eq!(error_text(&e), "reading x.toml: gone");
     }
 }

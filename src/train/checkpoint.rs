@@ -311,7 +311,7 @@ impl RunDir {
     }
 
     /// Tidies the run folder after a crash: deletes unfinished temporaries (`.NAME.tmp-PID`)
-    /// and puts back a checkpoint moved aside by an interrupted replacement. Returns what it
+    /// and half-deleted old checkpoints (`.step-N.del-PID`), and puts back a checkpoint moved aside by an interrupted replacement. Returns what it
     /// did, one line per entry (empty when the folder was clean).
     pub fn recover(&self) -> Vec<String> {
         let mut done = Vec::new();
@@ -325,13 +325,13 @@ impl RunDir {
                     continue;
                 };
                 let path = entry.path();
-                if hidden.contains(".tmp-") {
+                if hidden.contains(".tmp-") || hidden.contains(".del-") {
                     let removed = if path.is_dir() {
                         std::fs::remove_dir_all(&path)
                     } else {
                         std::fs::remove_file(&path)
                     };
-                    if removed.is_ok() {
+                    if removed.is_ok() && hidden.contains(".tmp-") {
                         done.push(format!("removed an unfinished write: {}", path.display()));
                     }
                 } else if let Some((original, _)) = hidden.split_once(".old-")
@@ -352,9 +352,16 @@ impl RunDir {
         done
     }
 
+    /// Deletes all but the newest [`KEEP_CHECKPOINTS`] checkpoints. Each is first renamed to
+    /// a hidden `.step-N.del-PID` (atomic), so that a crash while deleting never leaves a
+    /// half-deleted checkpoint under a checkpoint's name.
     fn prune(&self) {
         for step in self.checkpoint_steps().into_iter().skip(KEEP_CHECKPOINTS) {
-            let _ = std::fs::remove_dir_all(self.checkpoint_path(step));
+            let path = self.checkpoint_path(step);
+            let doomed = path.with_file_name(format!(".step-{step:08}.del-{}", std::process::id()));
+            if std::fs::rename(&path, &doomed).is_ok() {
+                let _ = std::fs::remove_dir_all(&doomed);
+            }
         }
     }
 }
@@ -463,12 +470,15 @@ mod tests {
         std::fs::create_dir(&temp).unwrap();
         std::fs::write(temp.join(MODEL_FILE), b"half").unwrap();
         std::fs::write(run.root.join(".metrics.json.tmp-99"), b"{").unwrap();
+        let doomed = run.checkpoints_dir().join(".step-00000001.del-99");
+        std::fs::create_dir(&doomed).unwrap();
+        std::fs::write(doomed.join(STATE_FILE), b"{}").unwrap();
         assert_eq!(run.checkpoint_steps(), vec![3, 2]);
         let done = run.recover();
         assert_eq!(done.len(), 3, "{done:?}");
         assert_eq!(run.checkpoint_steps(), vec![4, 3, 2]);
         assert_eq!(run.read_checkpoint(4).unwrap().0, vec![9; 10]);
-        assert!(!temp.exists() && !aside.exists());
+        assert!(!temp.exists() && !aside.exists() && !doomed.exists());
         assert!(run.recover().is_empty());
     }
 

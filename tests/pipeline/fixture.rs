@@ -55,7 +55,7 @@ pub fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     out
 }
 
-/// Hidden temporaries (`.NAME.tmp-PID`, `.NAME.old-PID`) under `dir`.
+/// Hidden temporaries (`.NAME.tmp-PID`, `.NAME.old-PID`, `.NAME.del-PID`) under `dir`.
 pub fn temporaries(dir: &Path) -> Vec<PathBuf> {
     let mut out = Vec::new();
     let mut stack = vec![dir.to_path_buf()];
@@ -66,7 +66,8 @@ pub fn temporaries(dir: &Path) -> Vec<PathBuf> {
         for entry in entries {
             let path = entry.unwrap().path();
             let name = path.file_name().unwrap().to_string_lossy().into_owned();
-            if name.starts_with('.') && (name.contains(".tmp-") || name.contains(".old-")) {
+            let hidden = [".tmp-", ".old-", ".del-"];
+            if name.starts_with('.') && hidden.iter().any(|h| name.contains(h)) {
                 out.push(path.clone());
             }
             if path.is_dir() {
