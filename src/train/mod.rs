@@ -168,33 +168,18 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         scene,
         scene_config,
         train,
-        mut model,
-        mut descriptors,
+        model,
+        descriptors,
         fabric,
         location,
     } = setup;
     train.validate()?;
-    let resumed = match &location {
-        RunLocation::Resume(dir) => Some(open_for_resume(dir, &scene)?),
-        RunLocation::At(dir) => {
-            refuse_existing_run(dir)?;
-            None
-        }
-        RunLocation::NewUnder(_) => None,
-    };
-    if let Some((_, meta)) = &resumed {
-        model = meta.model.clone();
-        descriptors = meta.descriptors.clone();
-    }
-    let fabric = match (fabric, &resumed) {
-        (Some(f), _) => f,
-        (None, Some((_, meta))) => meta.fabric.clone(),
-        (None, None) => FabricParams::from_table(&scene.fabric)?,
-    };
-    fabric.validate()?;
-    if !scene.effects.dynamics {
-        model.encoder = EncoderKind::StaticOnly;
-    }
+    let Settings {
+        resumed,
+        model,
+        descriptors,
+        fabric,
+    } = settings(&scene, &location, model, descriptors, fabric)?;
     let device = device_for(train.backend, true);
     device.seed(train.seed);
     let avatar = Arc::new(scene.avatar);
@@ -239,10 +224,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
             garment_name: garment.name.clone(),
             avatar_fingerprint: Some(avatar_fingerprint(&avatar)),
         };
-        let scene_toml = scene_config
-            .to_toml_string()
-            .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
-        run.write_meta(&meta, &scene_toml)?;
+        write_meta(&run, &meta, &scene_config)?;
     }
     let run_root = run.root.clone();
     let mut session = NeuralSession::new(SessionParts {
@@ -266,8 +248,75 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
     } else {
         (0, MetricHistory::default())
     };
-    let loop_config = LoopConfig {
-        run_dir: run_root,
+    let loop_config = loop_config(&train, run_root, start_step, history, warnings);
+    Ok((session, loop_config))
+}
+
+/// The model, descriptor and fabric settings of a run: for a resumed run the ones it recorded
+/// (with the run and its description), otherwise the given ones.
+struct Settings {
+    resumed: Option<(RunDir, RunMeta)>,
+    model: ClothNetConfig,
+    descriptors: DescriptorConfig,
+    fabric: FabricParams,
+}
+
+/// Resolves the [`Settings`] of a setup; refuses a new run over an existing one and a resume
+/// on another garment or avatar.
+fn settings(
+    scene: &Scene,
+    location: &RunLocation,
+    mut model: ClothNetConfig,
+    mut descriptors: DescriptorConfig,
+    fabric: Option<FabricParams>,
+) -> Result<Settings, TrainError> {
+    let resumed = match location {
+        RunLocation::Resume(dir) => Some(open_for_resume(dir, scene)?),
+        RunLocation::At(dir) => {
+            refuse_existing_run(dir)?;
+            None
+        }
+        RunLocation::NewUnder(_) => None,
+    };
+    if let Some((_, meta)) = &resumed {
+        model = meta.model.clone();
+        descriptors = meta.descriptors.clone();
+    }
+    let fabric = match (fabric, &resumed) {
+        (Some(f), _) => f,
+        (None, Some((_, meta))) => meta.fabric.clone(),
+        (None, None) => FabricParams::from_table(&scene.fabric)?,
+    };
+    fabric.validate()?;
+    if !scene.effects.dynamics {
+        model.encoder = EncoderKind::StaticOnly;
+    }
+    Ok(Settings {
+        resumed,
+        model,
+        descriptors,
+        fabric,
+    })
+}
+
+/// Writes the description and the scene of a new run.
+fn write_meta(run: &RunDir, meta: &RunMeta, scene: &SceneConfig) -> Result<(), TrainError> {
+    let scene_toml = scene
+        .to_toml_string()
+        .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+    run.write_meta(meta, &scene_toml)
+}
+
+/// The loop settings of a run that starts at `start_step` with `history`.
+fn loop_config(
+    train: &TrainConfig,
+    run_dir: PathBuf,
+    start_step: u64,
+    history: MetricHistory,
+    warnings: Vec<String>,
+) -> LoopConfig {
+    LoopConfig {
+        run_dir,
         start_step,
         history,
         max_steps: train.max_steps,
@@ -278,8 +327,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         max_rollbacks: 8,
         dead_limit_pct: train.dead_limit_pct,
         warnings,
-    };
-    Ok((session, loop_config))
+    }
 }
 
 /// The training and validation data of `motions`.
