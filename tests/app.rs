@@ -456,6 +456,7 @@ impl TrainerLauncher for FakeLauncher {
             checkpoint_every: 1000,
             max_rollbacks: 3,
             dead_limit_pct: 90.0,
+            lr_decay: (0.0, 1.0),
             warnings: Vec::new(),
         };
         if let Ok(mut r) = self.requests.lock() {

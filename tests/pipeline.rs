@@ -1165,3 +1165,46 @@ pinning = true
         assert!(!ok && log.contains("unknown motion 'nope'"), "{log}");
     }
 }
+
+#[test]
+fn warm_start_puts_the_effective_bias_at_the_drape_whatever_its_learning_rate_scale() {
+    let (scene, _) = tiny();
+    let garment = &scene.garment;
+    let drape: Vec<_> = garment
+        .mesh
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| p + neural_cloth::geometry::Vec3::new(0.0, -0.01 * (i % 3) as f32, 0.002))
+        .collect();
+    for scale in [1.0, 1.0 / 16.0] {
+        let device = burn::tensor::Device::flex();
+        let mut net = ClothNetConfig {
+            basis_bias_lr_scale: scale,
+            ..small_model()
+        }
+        .init(
+            scene.avatar.skeleton.names.len(),
+            garment.vertex_count(),
+            &device,
+        )
+        .unwrap();
+        neural_cloth::train::warm_start::set_basis_bias_to_drape(
+            &mut net, garment, &drape, &device,
+        )
+        .unwrap();
+        let weights = neural_cloth::model::InferenceWeights::from_module(&net).unwrap();
+        let bias = weights.basis.bias.unwrap();
+        for (v, (t, d)) in garment.mesh.positions.iter().zip(&drape).enumerate() {
+            let want = d - t;
+            for k in 0..3 {
+                assert!(
+                    (bias[3 * v + k] - want[k]).abs() < 1e-6,
+                    "scale {scale}, vertex {v}: {} vs {}",
+                    bias[3 * v + k],
+                    want[k]
+                );
+            }
+        }
+    }
+}

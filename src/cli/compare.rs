@@ -40,6 +40,9 @@ pub struct CompareArgs {
     /// JSON-lines file; `neural-cloth report` renders `docs/report/training_checks.jsonl`.
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// What the run is, in words, for the recorded check (e.g. its non-default settings).
+    #[arg(long, requires = "record")]
+    pub label: Option<String>,
 }
 
 /// Runs `compare`.
@@ -71,7 +74,10 @@ pub fn run(args: CompareArgs) -> anyhow::Result<()> {
     })?;
     bar.finish_and_clear();
     if let Some(path) = &args.record {
-        append_checks(path, &TrainingCheck::from_report(&trained, &report))?;
+        append_checks(
+            path,
+            &TrainingCheck::from_report(&trained, &report, args.label.as_deref()),
+        )?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);

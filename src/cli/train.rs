@@ -86,10 +86,17 @@ pub struct TrainArgs {
     /// also turns the warm start off).
     #[arg(long)]
     pub no_basis_bias: bool,
-    /// Let every window train the static encoder (default: only still windows do; see
-    /// docs/TRAINING.md).
+    /// Fraction of a bounded run over which the learning rate falls to --lr-final-factor of
+    /// its value at the end (0..=1, default 0 = constant rate).
     #[arg(long)]
-    pub static_from_all: bool,
+    pub lr_decay_fraction: Option<f64>,
+    /// Learning-rate factor reached at the end of a bounded run, in (0, 1] (default 0.1).
+    #[arg(long)]
+    pub lr_final_factor: Option<f64>,
+    /// Only still windows train the static encoder (moving windows see its code detached;
+    /// default: every window trains it; see docs/TRAINING.md).
+    #[arg(long)]
+    pub static_from_still: bool,
     /// Keep zero initial biases (no data-dependent centring of the layers).
     #[arg(long)]
     pub no_centre_init: bool,
@@ -300,11 +307,17 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     if args.no_centre_init {
         train.centre_init = false;
     }
-    if args.static_from_all {
-        train.static_from_still = false;
+    if args.static_from_still {
+        train.static_from_still = true;
     }
     if let Some(f) = args.still_fraction {
         train.still_fraction = f;
+    }
+    if let Some(f) = args.lr_decay_fraction {
+        train.lr_decay_fraction = f;
+    }
+    if let Some(f) = args.lr_final_factor {
+        train.lr_final_factor = f;
     }
     if let Some(d) = args.dead_limit {
         train.dead_limit_pct = d;

@@ -22,16 +22,20 @@
 //! sample; losses are batch means of those sums (the official code's reduction). Triangle
 //! stiffness terms are weighted by `|cross|` (twice the area) so that the paper's stiffness
 //! magnitudes keep their meaning; see [`fabric`] for the exact formulas and their physical
-//! equivalents. Hot-path tensors are `f32`; `f64` is only used on the CPU for rest-state
-//! precomputation and, where the backend supports it, for reference checks.
+//! equivalents. Hot-path tensors are `f32`; `f64` is used on the CPU for rest-state
+//! precomputation, inside the fused kernels (which read `f32` positions and return `f32`
+//! gradients) and, where the backend supports it, for reference checks.
 //!
 //! # Cost of each term (10K degrees of freedom)
-//! Measured with [`cost::measure_term_costs`] (`cargo test --release --test physics
-//! measure_term_costs -- --ignored --nocapture`); the full table, its baseline and the machine
-//! are in `docs/PHYSICS.md`. In short, on the flex CPU backend (batch 8, ~9.8K DoF), relative
-//! to `Σx²` forward + backward: gravity, inertia, pinning and the collision energy itself ≈ 3×;
-//! membrane terms ≈ 35-90×; bending ≈ 250×; the collision *query* (k-d trees, read-back,
-//! upload) ≈ 350×, which is what turning collision off saves.
+//! Measured with [`cost::measure_term_costs`] (`neural-cloth bench --physics-only`, or `cargo
+//! test --release --test physics measure_term_costs -- --ignored --nocapture`), which times each
+//! term as burn tensor code and as a fused kernel in the same run. On the flex CPU backend
+//! (batch 16, ~9.8K DoF), as burn tensor code, relative to `Σx²` forward + backward: gravity,
+//! inertia, pinning and the collision energy itself a few ×; membrane terms ≈ 100-250×;
+//! bending ≈ 600-900×, almost all of it the overhead of many small autodiff operations. The
+//! fused kernels cut the membrane terms about 5-10× and bending about 4-6×; the exact bucketed
+//! query cuts the collision query about 3× (k-d tree work per query; see the table for the
+//! read-back and upload).
 
 pub mod collision;
 pub mod cost;

@@ -81,7 +81,7 @@ pub fn render_training_checks(s: &mut String, checks: &[TrainingCheck]) {
     );
     let _ = writeln!(
         s,
-        "| garment | seed | minutes (threads) | steps | motion | w | mean mm all / still | swing mm net / sim | still hem m net / sim | moving hem m net / sim | opening | dead % | finite |"
+        "| garment | run | seed | minutes (threads) | steps | motion | w | mean mm all / still | swing mm net / sim | still hem m net / sim | moving hem m net / sim | opening | dead % | finite |"
     );
     let _ = writeln!(
         s,
@@ -95,8 +95,9 @@ pub fn render_training_checks(s: &mut String, checks: &[TrainingCheck]) {
         let (_, opening) = hem_targets(c);
         let _ = writeln!(
             s,
-            "| {} | {} | {:.1} ({}) | {} | {} | {} | {:.1} / {} | {} / {} | {} / {} | {} / {} | {} | {} | {} |",
+            "| {} | {} | {} | {:.1} ({}) | {} | {} | {} | {:.1} / {} | {} / {} | {} / {} | {} / {} | {} | {} | {} |",
             c.garment,
+            c.label.as_deref().unwrap_or(&c.run),
             c.seed,
             c.train_minutes,
             c.threads,
@@ -137,7 +138,7 @@ fn render_verdicts(s: &mut String, checks: &[TrainingCheck]) {
     }
     let _ = writeln!(
         s,
-        "| garment | seed | minutes | motion | target | value | verdict |\n|---|---:|---:|---|---|---|---|"
+        "| garment | run | seed | minutes | steps | motion | target | value | verdict |\n|---|---|---:|---:|---:|---|---|---|---|"
     );
     for ((garment, _, _, motion), group) in &groups {
         let Some(c) = group.iter().find(|c| (c.w - 1.0).abs() < 1e-6) else {
@@ -146,9 +147,11 @@ fn render_verdicts(s: &mut String, checks: &[TrainingCheck]) {
         let mut row = |target: &str, value: String, met: Option<bool>| {
             let _ = writeln!(
                 s,
-                "| {garment} | {} | {:.1} | {motion} | {target} | {value} | {} |",
+                "| {garment} | {} | {} | {:.1} | {} | {motion} | {target} | {value} | {} |",
+                c.label.as_deref().unwrap_or(&c.run),
                 c.seed,
                 c.train_minutes,
+                c.steps,
                 verdict(met)
             );
         };
@@ -240,6 +243,7 @@ mod tests {
         };
         TrainingCheck {
             run: "runs/skirt".into(),
+            label: None,
             scene: "skirt".into(),
             garment: "skirt".into(),
             seed: 0,

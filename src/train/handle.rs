@@ -131,6 +131,9 @@ pub trait Session: Send {
     fn learning_rate(&self) -> f64;
     /// Sets the learning rate.
     fn set_learning_rate(&mut self, lr: f64);
+    /// Sets the schedule's factor on the learning rate for the next steps (1 = the rate as
+    /// set; see [`super::config::lr_schedule_factor`]). Sessions without a schedule ignore it.
+    fn set_schedule_factor(&mut self, _factor: f64) {}
     /// Applies new fabric parameters.
     fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), String>;
     /// Applies a new window length in seconds.
@@ -204,6 +207,9 @@ pub struct LoopConfig {
     /// A validation pass with this percentage of dead units in one revivable layer (or
     /// [`FROZEN_PASSES`] bit-identical passes) triggers the stall remedy; 0..=100.
     pub dead_limit_pct: f64,
+    /// Learning-rate decay at the end of a bounded run: the fraction of the run it spans
+    /// (0 = none) and the final factor ([`super::config::lr_schedule_factor`]).
+    pub lr_decay: (f64, f64),
 }
 
 /// The handle the UI or CLI keeps. Dropping it stops the trainer and joins the thread.
@@ -435,6 +441,20 @@ fn run_loop<S: Session>(
         {
             break;
         }
+        let progress = config
+            .max_steps
+            .map(|m| step as f64 / m.max(1) as f64)
+            .into_iter()
+            .chain(config.max_secs.map(|m| trained_secs / m.max(1e-9)))
+            .fold(None, |a: Option<f64>, p| Some(a.map_or(p, |a| a.max(p))));
+        if let Some(progress) = progress {
+            let (fraction, final_factor) = config.lr_decay;
+            session.set_schedule_factor(super::config::lr_schedule_factor(
+                progress,
+                fraction,
+                final_factor,
+            ));
+        }
         let started = Instant::now();
         let result = session.step();
         trained_secs += started.elapsed().as_secs_f64();
@@ -534,3 +554,7 @@ fn run_loop<S: Session>(
         rollbacks,
     })
 }
+
+#[cfg(test)]
+#[path = "handle_tests.rs"]
+mod tests;

@@ -326,6 +326,7 @@ fn loop_config(
         checkpoint_every: train.checkpoint_every,
         max_rollbacks: 8,
         dead_limit_pct: train.dead_limit_pct,
+        lr_decay: (train.lr_decay_fraction, train.lr_final_factor),
         warnings,
     }
 }

@@ -42,6 +42,8 @@ pub struct NeuralSession {
     model: ClothNet,
     optim: ModuleOptimizer,
     learning_rate: f64,
+    /// Factor of the learning-rate schedule on `learning_rate` (checkpoints keep the latter).
+    schedule_factor: f64,
     config: TrainConfig,
     terms: PhysicsTerms,
     lbs: GarmentLbs,
@@ -93,6 +95,7 @@ impl NeuralSession {
             model: parts.model,
             optim,
             learning_rate: parts.config.learning_rate,
+            schedule_factor: 1.0,
             config: parts.config,
             terms: parts.terms,
             lbs: parts.lbs,
@@ -358,9 +361,11 @@ impl Session for NeuralSession {
         let loss = total.clone().into_scalar::<f64>();
         let grads = total.backward();
         let grads = GradientsParams::from_grads(grads, &self.model);
-        self.model = self
-            .optim
-            .step(self.learning_rate, self.model.clone(), grads);
+        self.model = self.optim.step(
+            self.learning_rate * self.schedule_factor,
+            self.model.clone(),
+            grads,
+        );
         // Per-step metrics on the first few windows only: they are a noisy monitor anyway, and
         // the full batch would cost a sizeable share of the step (validation uses every window).
         let n = b.min(STEP_METRIC_WINDOWS);
@@ -486,6 +491,10 @@ impl Session for NeuralSession {
 
     fn set_learning_rate(&mut self, lr: f64) {
         self.learning_rate = lr;
+    }
+
+    fn set_schedule_factor(&mut self, factor: f64) {
+        self.schedule_factor = factor;
     }
 
     fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), String> {

@@ -17,6 +17,9 @@ use super::{CompareReport, MotionComparison};
 pub struct TrainingCheck {
     /// The run folder, as given.
     pub run: String,
+    /// What the run was, in words (`compare --label`), e.g. its non-default settings.
+    #[serde(default)]
+    pub label: Option<String>,
     /// Scene name of the run.
     pub scene: String,
     /// Garment name (`skirt`, `tshirt`, ...).
@@ -44,7 +47,11 @@ pub struct TrainingCheck {
 
 impl TrainingCheck {
     /// The checks of `report` (one per motion) with the run's history up to the compared step.
-    pub fn from_report(trained: &TrainedModel, report: &CompareReport) -> Vec<TrainingCheck> {
+    pub fn from_report(
+        trained: &TrainedModel,
+        report: &CompareReport,
+        label: Option<&str>,
+    ) -> Vec<TrainingCheck> {
         let history = trained.run.history();
         let upto = |r: &&crate::train::MetricRecord| r.step <= report.step;
         let train_minutes = history
@@ -76,6 +83,7 @@ impl TrainingCheck {
             .iter()
             .map(|m| TrainingCheck {
                 run: report.run.display().to_string(),
+                label: label.map(str::to_string),
                 scene: trained.scene.name.clone(),
                 garment: report.garment.clone(),
                 seed: trained.meta.train.seed,
