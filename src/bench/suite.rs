@@ -34,6 +34,9 @@ pub struct TrainBench {
     pub fps: f32,
     /// Effects of the scene (the default scene has all but pinning).
     pub effects: Effects,
+    /// Physics as fused kernels (true, the default path) or as burn tensor code (the
+    /// reference path the kernels are checked against).
+    pub fused_physics: bool,
     /// Median milliseconds per optimiser step.
     pub ms_per_step: f64,
     /// Peak resident memory of the process during the steps, bytes.
@@ -89,8 +92,14 @@ impl Default for BenchOptions {
     }
 }
 
-/// Median optimiser-step time of the default scene with `effects` at `batch`.
-pub fn bench_training(batch: usize, steps: usize, effects: Effects) -> Result<TrainBench, String> {
+/// Median optimiser-step time of the default scene with `effects` at `batch`, with the fused
+/// physics kernels or (`fused_physics = false`) the burn reference path.
+pub fn bench_training(
+    batch: usize,
+    steps: usize,
+    effects: Effects,
+    fused_physics: bool,
+) -> Result<TrainBench, String> {
     let mut config = SceneConfig::default_scene();
     config.effects = effects;
     let scene = build_builtin(&config).map_err(|e| e.to_string())?;
@@ -100,6 +109,7 @@ pub fn bench_training(batch: usize, steps: usize, effects: Effects) -> Result<Tr
         batch_size: batch,
         window_secs: 0.5,
         fps: 30.0,
+        fused_physics,
         ..Default::default()
     };
     let setup = TrainSetup {
@@ -129,9 +139,15 @@ pub fn bench_training(batch: usize, steps: usize, effects: Effects) -> Result<Tr
         window_secs: train.window_secs,
         fps: train.fps,
         effects,
+        fused_physics,
         ms_per_step: times.get(times.len() / 2).copied().unwrap_or(f64::NAN),
         peak_bytes,
     })
+}
+
+/// The name of a physics path in logs and tables.
+pub fn physics_label(fused: bool) -> &'static str {
+    if fused { "fused" } else { "burn (reference)" }
 }
 
 /// One inference configuration of the suite.
@@ -284,26 +300,33 @@ pub fn run_suite(options: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Be
     let mut training = Vec::new();
     for (k, &batch) in options.train_batches.iter().enumerate() {
         let all = Effects::default();
-        let mut variants = vec![all];
+        let mut variants = vec![(all, true)];
         if k == 0 {
-            variants.push(Effects {
-                collision: false,
-                ..all
-            });
-            variants.push(Effects {
-                bending: false,
-                ..all
-            });
-            variants.push(Effects {
-                dynamics: false,
-                ..all
-            });
+            // The reference path first, so the ratio fused / burn is measured in this run.
+            variants.insert(0, (all, false));
+            for off in [
+                Effects {
+                    collision: false,
+                    ..all
+                },
+                Effects {
+                    bending: false,
+                    ..all
+                },
+                Effects {
+                    dynamics: false,
+                    ..all
+                },
+            ] {
+                variants.push((off, true));
+            }
         }
-        for effects in variants {
-            let t = bench_training(batch, options.train_steps, effects)?;
+        for (effects, fused) in variants {
+            let t = bench_training(batch, options.train_steps, effects, fused)?;
             log(&format!(
-                "training step, batch {batch}, {}: {:.1} ms, peak {:.0} MB",
+                "training step, batch {batch}, {}, {} physics: {:.1} ms, peak {:.0} MB",
                 super::report::effects_label(&t.effects),
+                physics_label(fused),
                 t.ms_per_step,
                 t.peak_bytes as f64 / 1e6
             ));

@@ -87,6 +87,10 @@ pub struct TrainConfig {
     pub lr_decay_fraction: f64,
     /// The learning-rate factor reached at the end of a bounded run, in (0, 1]; default 0.1.
     pub lr_final_factor: f64,
+    /// Evaluate the static energies with the fused kernels (default true) or with the burn
+    /// tensor code they are checked against (false: the reference path, about 3× slower per
+    /// step on the default scene; kept for checks and benchmarks).
+    pub fused_physics: bool,
     /// A validation pass with at least this percentage of dead units in one revivable layer
     /// (decoder, static hidden layers) triggers the stall remedy (revive the dead units); 1..=100, default 75.
     pub dead_limit_pct: f64,
@@ -116,6 +120,7 @@ impl Default for TrainConfig {
             dead_limit_pct: 75.0,
             lr_decay_fraction: 0.0,
             lr_final_factor: 0.1,
+            fused_physics: true,
         }
     }
 }

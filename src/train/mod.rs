@@ -208,7 +208,8 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         )?;
         warm_start::set_basis_bias_to_drape(&mut net, &garment, &drape, &device)?;
     }
-    let terms = PhysicsTerms::new(&garment, &fabric, &scene.effects, &device)?;
+    let terms = PhysicsTerms::new(&garment, &fabric, &scene.effects, &device)?
+        .with_fused(train.fused_physics);
     let lbs = GarmentLbs::from_garment(&garment, avatar.skeleton.len(), &device)?;
     if !resume {
         let meta = RunMeta {

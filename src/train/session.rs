@@ -500,7 +500,8 @@ impl Session for NeuralSession {
     fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), String> {
         let effects = *self.terms.effects();
         self.terms = PhysicsTerms::new(&self.garment, &fabric, &effects, &self.device)
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| e.to_string())?
+            .with_fused(self.config.fused_physics);
         Ok(())
     }
 
