@@ -4,7 +4,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::retarget::canonical_joint_name;
+use super::joint_map::{JointMap, map_joints};
+use super::joint_names::classify;
 use super::{ImportOptions, IoError, LoadedMesh, Units};
 use crate::geometry::TriMesh;
 
@@ -80,15 +81,13 @@ pub fn inspect(path: &Path) -> Result<String, IoError> {
                     (root.y - low) * scale
                 );
             }
-            let mut canonical: Vec<&str> = names
-                .iter()
-                .filter_map(|n| canonical_joint_name(n))
-                .collect();
+            let rig = classify(&names);
+            let mut canonical: Vec<&str> = rig.canonical.iter().flatten().copied().collect();
             canonical.sort_unstable();
-            canonical.dedup();
             let _ = writeln!(
                 out,
-                "retargetable joints (Mixamo names): {} ({})",
+                "retargetable joints ({} naming, as Mixamo names): {} ({})",
+                rig.convention,
                 canonical.len(),
                 canonical.join(", ")
             );
@@ -102,6 +101,70 @@ pub fn inspect(path: &Path) -> Result<String, IoError> {
         }
     }
     Ok(out)
+}
+
+/// [`inspect`]'s report on a motion file (BVH or glTF), then the joint mapping retargeting
+/// would use onto `avatar` (a skinned glTF/GLB, or the built-in `mannequin` when no such file
+/// exists) with the user's `joint_map`: each avatar joint and its motion joint, what is left
+/// unmapped, and whether every essential joint is mapped.
+pub fn inspect_mapping(
+    path: &Path,
+    avatar: &Path,
+    joint_map: Option<&JointMap>,
+) -> Result<String, IoError> {
+    let mut out = inspect(path)?;
+    let avatar_names = if avatar == Path::new("mannequin") && !avatar.exists() {
+        crate::scene::procedural::mannequin::skeleton()
+            .map_err(|source| IoError::Scene {
+                source,
+                path: avatar.to_path_buf(),
+            })?
+            .names
+    } else {
+        super::load_avatar(avatar, &ImportOptions::default())?
+            .avatar
+            .skeleton
+            .names
+    };
+    let motion_names: Vec<String> = match ext_of(path).as_str() {
+        "bvh" => super::load_bvh(path)?
+            .joints
+            .into_iter()
+            .map(|j| j.name)
+            .collect(),
+        _ => {
+            super::load_avatar(path, &ImportOptions::default())?
+                .avatar
+                .skeleton
+                .names
+        }
+    };
+    let mapping = map_joints(&avatar_names, &motion_names, joint_map, path)?;
+    let _ = writeln!(out, "retargeting onto: {}", avatar.display());
+    out.push_str(&mapping.report(&avatar_names, &motion_names));
+    match mapping.check_essential(&avatar_names, &motion_names, path) {
+        Ok(()) => {
+            let _ = writeln!(out, "essential joints: all mapped");
+        }
+        Err(IoError::UnmappedJoints {
+            joints, closest, ..
+        }) => {
+            let _ = writeln!(
+                out,
+                "essential joints NOT mapped: {} (closest motion joints: {closest}; give them \
+                 with --joint-map)",
+                joints.join(", ")
+            );
+        }
+        Err(e) => return Err(e),
+    }
+    Ok(out)
+}
+
+fn ext_of(path: &Path) -> String {
+    path.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default()
 }
 
 fn units_line(out: &mut String, asked: Units, used: Units) {

@@ -9,6 +9,7 @@
 
 pub mod bvh;
 mod bvh_parse;
+pub mod bvh_write;
 pub mod export;
 mod gltf_accessor;
 mod gltf_anim;
@@ -16,6 +17,8 @@ pub mod gltf_avatar;
 mod gltf_doc;
 pub mod gltf_mesh;
 pub mod inspect;
+pub mod joint_map;
+pub mod joint_names;
 pub mod obj;
 pub mod retarget;
 pub mod scene_loader;
@@ -25,8 +28,10 @@ pub use bvh::{Bvh, BvhChannel, BvhJoint, load_bvh};
 pub use gltf_avatar::{load_avatar, load_avatar_from_bytes};
 pub use gltf_mesh::{load_gltf_mesh, load_gltf_mesh_from_bytes};
 pub use inspect::inspect;
+pub use joint_map::{JointMap, JointMapping, map_joints};
+pub use joint_names::canonical_joint_name;
 pub use obj::{load_obj, load_obj_from_bytes};
-pub use retarget::{RetargetOptions, canonical_joint_name, retarget_bvh};
+pub use retarget::{RetargetOptions, SourceMotion, retarget, retarget_bvh};
 pub use units::Units;
 
 use std::path::{Path, PathBuf};
@@ -176,18 +181,26 @@ pub enum IoError {
         /// The file.
         path: PathBuf,
     },
-    /// Retargeting could not map the avatar's core joints to the motion's joints.
+    /// Retargeting could not map the avatar's essential joints to the motion's joints.
     #[error(
-        "cannot map avatar joints {joints:?} to any joint of the motion (motion joints: \
-         {available}): {}",
+        "cannot map avatar joints {joints:?} to joints of the motion (closest motion joints: \
+         {closest}; give them in a joint map, --joint-map): {}",
         path.display()
     )]
     UnmappedJoints {
         /// Avatar joints left without a motion joint.
         joints: Vec<String>,
-        /// Short list of the motion's joint names.
-        available: String,
+        /// For each of them, the closest unused joint names of the motion.
+        closest: String,
         /// The motion file.
+        path: PathBuf,
+    },
+    /// A user joint map that cannot be read or names joints that do not exist.
+    #[error("joint map: {reason}: {}", path.display())]
+    JointMap {
+        /// What is wrong.
+        reason: String,
+        /// The joint map file.
         path: PathBuf,
     },
     /// Something valid but not supported by this importer.
@@ -225,6 +238,7 @@ impl IoError {
             | Self::NonUnitRotation { path, .. }
             | Self::JointCountMismatch { path, .. }
             | Self::UnmappedJoints { path, .. }
+            | Self::JointMap { path, .. }
             | Self::Unsupported { path, .. }
             | Self::Scene { path, .. } => path,
         }

@@ -134,6 +134,8 @@ fn every_cmu_clip_retargets_onto_a_mixamo_skeleton() {
             &RetargetOptions {
                 fps: bvh.fps(),
                 recentre: false,
+                align_rest: false,
+                ..Default::default()
             },
         )
         .unwrap();
