@@ -40,6 +40,7 @@ fn scene_config_of(request: &TrainingRequest) -> SceneConfig {
                 units: None,
                 split: Split::Train,
                 name: None,
+                joint_map: None,
             })
             .collect();
     }

@@ -10,8 +10,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use neural_cloth::bake::{
     BakeFormat, BakeOptions, FrameSource, ModelSource, Preset, SimulatorSource, bake,
 };
+use neural_cloth::io::JointMap;
 use neural_cloth::io::Units;
-use neural_cloth::io::scene_loader::load_motions;
+use neural_cloth::io::scene_loader::{MotionImport, load_motions};
 use neural_cloth::physics::simulator::{SimOptions, Stepper};
 use neural_cloth::physics::{FabricParams, GarmentRest};
 use neural_cloth::scene::{Motion, Scene};
@@ -23,6 +24,10 @@ pub struct OutputArgs {
     /// Motion: a name from the scene, or a BVH/glTF file.
     #[arg(long)]
     pub motion: String,
+    /// Joint map (TOML: `[joints] AvatarJoint = "MotionJoint"`) for a --motion file,
+    /// overriding the automatic joint mapping.
+    #[arg(long)]
+    pub joint_map: Option<PathBuf>,
     /// Output format.
     #[arg(long, value_parser = parse_format, default_value = "pc2")]
     pub format: BakeFormat,
@@ -96,14 +101,26 @@ pub struct SimulateArgs {
 }
 
 /// The motion named `spec` in the scene, or loaded from the file `spec`.
-pub fn find_motion(scene: &Scene, spec: &str, fps: f32) -> anyhow::Result<Motion> {
+pub fn find_motion(
+    scene: &Scene,
+    spec: &str,
+    fps: f32,
+    joint_map: Option<&Path>,
+) -> anyhow::Result<Motion> {
     if let Some((m, _)) = scene.motions.iter().find(|(m, _)| m.name == spec) {
         return Ok(m.clone());
     }
     let path = Path::new(spec);
     if path.is_file() {
         let mut warnings = Vec::new();
-        let mut motions = load_motions(path, &scene.avatar, Units::Auto, fps, None, &mut warnings)?;
+        let joint_map = joint_map.map(JointMap::load).transpose()?;
+        let how = MotionImport {
+            units: Units::Auto,
+            fps,
+            only: None,
+            joint_map: joint_map.as_ref(),
+        };
+        let mut motions = load_motions(path, &scene.avatar, &how, &mut warnings)?;
         for w in warnings {
             eprintln!("warning: {w}");
         }
@@ -172,7 +189,12 @@ pub fn run(args: BakeArgs) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     let fps = trained.meta.train.fps;
-    let motion = find_motion(&trained.scene, &args.output.motion, fps)?;
+    let motion = find_motion(
+        &trained.scene,
+        &args.output.motion,
+        fps,
+        args.output.joint_map.as_deref(),
+    )?;
     let options = options(&args.output, &motion, args.w);
     neural_cloth::bake::check_options(&options)?;
     let engine = trained.garment_engine()?;
@@ -182,10 +204,15 @@ pub fn run(args: BakeArgs) -> anyhow::Result<()> {
 
 /// Runs `simulate`.
 pub fn simulate(args: SimulateArgs) -> anyhow::Result<()> {
-    let (scene, _) = super::train::scene_from_args(args.scene.as_deref(), None, None, None)?;
+    let (scene, _) = super::train::scene_from_args(args.scene.as_deref(), None, None, None, None)?;
     let fabric = FabricParams::from_table(&scene.fabric)?;
     let fps = args.output.fps;
-    let motion = find_motion(&scene, &args.output.motion, fps)?;
+    let motion = find_motion(
+        &scene,
+        &args.output.motion,
+        fps,
+        args.output.joint_map.as_deref(),
+    )?;
     let options = options(&args.output, &motion, 1.0);
     neural_cloth::bake::check_options(&options)?;
     let sim = SimOptions {

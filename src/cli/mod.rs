@@ -34,6 +34,14 @@ pub enum Command {
     Inspect {
         /// The file to read.
         file: PathBuf,
+        /// Also print how the file's motion would map onto this avatar's joints (a glTF/GLB
+        /// file, or `mannequin` for the built-in one).
+        #[arg(long)]
+        avatar: Option<PathBuf>,
+        /// Joint map (TOML: `[joints] AvatarJoint = "MotionJoint"`) overriding the automatic
+        /// mapping; needs --avatar.
+        #[arg(long)]
+        joint_map: Option<PathBuf>,
     },
     /// Train a model on a scene headless (default: the built-in scene).
     Train(Box<train::TrainArgs>),
@@ -72,7 +80,11 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 ..Default::default()
             })
         }
-        Some(Command::Inspect { file }) => inspect::run(&file),
+        Some(Command::Inspect {
+            file,
+            avatar,
+            joint_map,
+        }) => inspect::run(&file, avatar.as_deref(), joint_map.as_deref()),
         Some(Command::Train(args)) => train::run(*args),
         Some(Command::Eval(args)) => train::eval(args),
         Some(Command::Bake(args)) => bake::run(args),

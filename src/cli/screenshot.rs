@@ -60,12 +60,12 @@ pub fn run(args: ScreenshotArgs) -> anyhow::Result<()> {
             (t.scene.clone(), Some(t))
         }
         None => (
-            super::train::scene_from_args(args.scene.as_deref(), None, None, None)?.0,
+            super::train::scene_from_args(args.scene.as_deref(), None, None, None, None)?.0,
             None,
         ),
     };
     let motion = match &args.motion {
-        Some(name) => super::bake::find_motion(&scene, name, scene.training_fps)?,
+        Some(name) => super::bake::find_motion(&scene, name, scene.training_fps, None)?,
         None => scene
             .motions
             .first()

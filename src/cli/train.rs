@@ -7,7 +7,7 @@ use std::time::Duration;
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use neural_cloth::io::scene_loader::{load_scene, load_scene_file};
+use neural_cloth::io::scene_loader::{folder_split, load_scene, load_scene_file};
 use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
 use neural_cloth::scene::config::{AvatarSource, GarmentSource, MotionSource, SceneConfig, Split};
 use neural_cloth::train::{
@@ -26,9 +26,15 @@ pub struct TrainArgs {
     /// Skinned avatar (glTF/GLB) replacing the scene's avatar; needs --garment.
     #[arg(long, requires = "garment")]
     pub avatar: Option<PathBuf>,
-    /// Folder of BVH (or glTF) motions used for training (every 10th file validates).
+    /// Folder of BVH (or glTF) motions. Files sorted by name; of each ten the 9th is a test
+    /// and the 10th a validation motion; with 3 to 9 files the last tests and the one before
+    /// validates; with 2 the last tests.
     #[arg(long)]
     pub motions: Option<PathBuf>,
+    /// Joint map (TOML: `[joints] AvatarJoint = "MotionJoint"`) overriding the automatic
+    /// joint mapping of every motion file that has no map of its own.
+    #[arg(long)]
+    pub joint_map: Option<PathBuf>,
     /// Train for this many minutes.
     #[arg(long)]
     pub minutes: Option<f64>,
@@ -123,10 +129,13 @@ pub fn scene_from_args(
     avatar: Option<&Path>,
     garment: Option<&Path>,
     motions: Option<&Path>,
+    joint_map: Option<&Path>,
 ) -> anyhow::Result<(neural_cloth::scene::Scene, SceneConfig)> {
-    let (config, dir) = scene_config_from_args(scene, avatar, garment, motions)?;
+    let (config, dir) = scene_config_from_args(scene, avatar, garment, motions, joint_map)?;
     let loaded = match scene {
-        Some(p) if avatar.is_none() && motions.is_none() => load_scene_file(p)?,
+        Some(p) if avatar.is_none() && motions.is_none() && joint_map.is_none() => {
+            load_scene_file(p)?
+        }
         _ => load_scene(&config, &dir, scene.unwrap_or(Path::new("command line")))?,
     };
     for w in &loaded.warnings {
@@ -142,6 +151,7 @@ fn scene_config_from_args(
     avatar: Option<&Path>,
     garment: Option<&Path>,
     motions: Option<&Path>,
+    joint_map: Option<&Path>,
 ) -> anyhow::Result<(SceneConfig, PathBuf)> {
     let (mut config, dir) = match scene {
         Some(path) => {
@@ -190,14 +200,27 @@ fn scene_config_from_args(
             .map(|(k, p)| MotionSource::File {
                 path: abs(p),
                 units: None,
-                split: if files.len() > 1 && k % 10 == 9 {
-                    Split::Validation
-                } else {
-                    Split::Train
-                },
+                split: folder_split(k, files.len()),
                 name: None,
+                joint_map: None,
             })
             .collect();
+        if files.len() == 1 {
+            eprintln!(
+                "warning: one motion in {}: it trains, and no motion is left to validate or \
+                 test (eval --split train)",
+                dir.display()
+            );
+        }
+    }
+    if let Some(map) = joint_map {
+        for m in &mut config.motions {
+            if let MotionSource::File { joint_map, .. } = m
+                && joint_map.is_none()
+            {
+                *joint_map = Some(abs(map));
+            }
+        }
     }
     // Paths stored in the run must not depend on the working directory.
     let resolve = |p: &Path| abs(&SceneConfig::resolve_path(&dir, p));
@@ -208,8 +231,14 @@ fn scene_config_from_args(
         *path = resolve(path);
     }
     for m in &mut config.motions {
-        if let MotionSource::File { path, .. } = m {
+        if let MotionSource::File {
+            path, joint_map, ..
+        } = m
+        {
             *path = resolve(path);
+            if let Some(map) = joint_map {
+                *map = resolve(map);
+            }
         }
     }
     Ok((config, dir))
@@ -223,13 +252,18 @@ fn resumed_scene(
 ) -> anyhow::Result<(neural_cloth::scene::Scene, SceneConfig, TrainConfig)> {
     let run = RunDir::open(dir)?;
     let meta = run.meta()?;
-    if args.scene.is_some() || args.avatar.is_some() || args.motions.is_some() {
+    if args.scene.is_some()
+        || args.avatar.is_some()
+        || args.motions.is_some()
+        || args.joint_map.is_some()
+    {
         let recorded = resume::recorded_config(&run)?;
         let (given, _) = scene_config_from_args(
             args.scene.as_deref(),
             args.avatar.as_deref(),
             args.garment.as_deref(),
             args.motions.as_deref(),
+            args.joint_map.as_deref(),
         )?;
         if let Some(difference) = resume::scene_difference(&recorded, &given)? {
             bail!(
@@ -256,6 +290,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
                 args.avatar.as_deref(),
                 args.garment.as_deref(),
                 args.motions.as_deref(),
+                args.joint_map.as_deref(),
             )?;
             let train = TrainConfig {
                 fps: scene.training_fps,
@@ -460,6 +495,28 @@ pub fn eval(args: EvalArgs) -> anyhow::Result<()> {
     for w in &trained.warnings {
         eprintln!("warning: {w}");
     }
+    let names: Vec<&str> = trained
+        .scene
+        .motions_in(split)
+        .map(|m| m.name.as_str())
+        .collect();
+    let count = |s: Split| trained.scene.motions_in(s).count();
+    anyhow::ensure!(
+        !names.is_empty(),
+        "the run's scene has no motion in the {} split (train {}, validation {}, test {}); \
+         choose another with --split: {}",
+        args.split,
+        count(Split::Train),
+        count(Split::Validation),
+        count(Split::Test),
+        args.checkpoint.display()
+    );
+    eprintln!(
+        "evaluating the {} split: {} motions ({})",
+        args.split,
+        names.len(),
+        names.join(", ")
+    );
     let report = neural_cloth::train::evaluate(&trained, split, args.w)?;
     println!("{}", serde_json::to_string_pretty(&report)?);
     // The official code's definitions, beside ours (on stderr: stdout stays pure JSON).

@@ -1,6 +1,7 @@
 //! Loads a whole scene from a [`SceneConfig`]: built-in sources come from
 //! `scene::procedural`, file sources from the importers of this layer (glTF/GLB avatars, OBJ or
-//! glTF garments, BVH motions retargeted onto the avatar, glTF animations of the same rig).
+//! glTF garments, BVH motions and glTF animations of other rigs retargeted onto the avatar,
+//! with an optional joint map per motion).
 
 use std::path::Path;
 
@@ -11,8 +12,8 @@ use crate::scene::procedural::{builtin_garment, builtin_motion, mannequin};
 use crate::scene::{Avatar, Garment, GarmentOptions, Motion, Scene};
 
 use super::{
-    ImportOptions, IoError, RetargetOptions, Units, load_avatar, load_bvh, load_gltf_mesh,
-    load_obj, retarget_bvh,
+    ImportOptions, IoError, JointMap, RetargetOptions, SourceMotion, Units, load_avatar, load_bvh,
+    load_gltf_mesh, load_obj, retarget, retarget_bvh,
 };
 
 /// A loaded scene and the importers' warnings.
@@ -140,14 +141,22 @@ pub fn load_scene(
                 units,
                 split,
                 name,
+                joint_map,
             } => {
                 let file = SceneConfig::resolve_path(config_dir, path);
+                let joint_map = joint_map
+                    .as_ref()
+                    .map(|p| JointMap::load(&SceneConfig::resolve_path(config_dir, p)))
+                    .transpose()?;
                 for m in load_motions(
                     &file,
                     &avatar,
-                    units_of(*units, &file)?,
-                    fps,
-                    name.as_deref(),
+                    &MotionImport {
+                        units: units_of(*units, &file)?,
+                        fps,
+                        only: name.as_deref(),
+                        joint_map: joint_map.as_ref(),
+                    },
                     &mut warnings,
                 )? {
                     motions.push((m, *split));
@@ -210,29 +219,40 @@ pub fn load_garment(
     Ok(garment)
 }
 
-/// Loads the motions of a BVH file (retargeted onto `avatar`) or of a glTF/GLB file with the
-/// same skeleton (same joint names in the same order), at `fps`. `only` picks one animation.
+/// How [`load_motions`] reads a motion file.
+#[derive(Clone, Copy, Debug)]
+pub struct MotionImport<'a> {
+    /// Length unit of a glTF file ([`Units::Auto`]: detected); BVH lengths are scaled by
+    /// the ratio of leg lengths.
+    pub units: Units,
+    /// Frame rate of the motions, frames per second.
+    pub fps: f32,
+    /// Only the animation of this name (glTF files hold several).
+    pub only: Option<&'a str>,
+    /// The user's joint map, overriding the automatic joint mapping.
+    pub joint_map: Option<&'a JointMap>,
+}
+
+/// Loads the motions of a BVH file or of a glTF/GLB file's animations, retargeted onto
+/// `avatar` (a glTF rig with exactly the avatar's joint names, and no joint map, is taken
+/// as is).
 pub fn load_motions(
     file: &Path,
     avatar: &Avatar,
-    units: Units,
-    fps: f32,
-    only: Option<&str>,
+    how: &MotionImport<'_>,
     warnings: &mut Vec<String>,
 ) -> Result<Vec<Motion>, IoError> {
+    let options = RetargetOptions {
+        fps: how.fps,
+        joint_map: how.joint_map.cloned(),
+        ..Default::default()
+    };
+    let note = |w: &String| format!("{}: {w}", file.display());
     let mut motions = match extension(file).as_str() {
         "bvh" => {
             let bvh = load_bvh(file)?;
-            let _ = units; // BVH units are taken from the hip-height ratio during retargeting.
-            let (mut motion, w) = retarget_bvh(
-                &bvh,
-                &avatar.skeleton,
-                &RetargetOptions {
-                    fps,
-                    ..Default::default()
-                },
-            )?;
-            warnings.extend(w.iter().map(|w| format!("{}: {w}", file.display())));
+            let (mut motion, w) = retarget_bvh(&bvh, &avatar.skeleton, &options)?;
+            warnings.extend(w.iter().map(note));
             motion.name = file
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
@@ -240,25 +260,35 @@ pub fn load_motions(
             vec![motion]
         }
         "gltf" | "glb" => {
-            let loaded = load_avatar(file, &ImportOptions { units, fps })?;
-            if loaded.avatar.skeleton.names != avatar.skeleton.names {
-                return Err(IoError::JointCountMismatch {
-                    what: format!(
-                        "animations must drive the avatar's skeleton ({} joints with the same names)",
-                        avatar.skeleton.len()
-                    ),
-                    expected: avatar.skeleton.len(),
-                    found: loaded.avatar.skeleton.len(),
-                    path: file.to_path_buf(),
-                });
+            let loaded = load_avatar(
+                file,
+                &ImportOptions {
+                    units: how.units,
+                    fps: how.fps,
+                },
+            )?;
+            warnings.extend(loaded.warnings.iter().map(note));
+            let rig = &loaded.avatar.skeleton;
+            let mut animations = loaded.avatar.motions.clone();
+            if let Some(name) = how.only {
+                animations.retain(|m| m.name == name);
             }
-            warnings.extend(
-                loaded
-                    .warnings
-                    .iter()
-                    .map(|w| format!("{}: {w}", file.display())),
-            );
-            loaded.avatar.motions
+            if rig.names == avatar.skeleton.names && how.joint_map.is_none() {
+                animations
+            } else {
+                let mut out = Vec::with_capacity(animations.len());
+                for animation in &animations {
+                    let source = SourceMotion::from_rig(rig, animation, file);
+                    let (motion, w) = retarget(&source, &avatar.skeleton, &options)?;
+                    for w in w.iter().map(note) {
+                        if !warnings.contains(&w) {
+                            warnings.push(w);
+                        }
+                    }
+                    out.push(motion);
+                }
+                out
+            }
         }
         other => {
             return Err(IoError::UnsupportedFormat {
@@ -267,7 +297,7 @@ pub fn load_motions(
             });
         }
     };
-    if let Some(name) = only {
+    if let Some(name) = how.only {
         motions.retain(|m| m.name == name);
         if motions.is_empty() {
             return Err(IoError::Unsupported {
@@ -293,4 +323,53 @@ fn units_of(unit: Option<LengthUnit>, _file: &Path) -> Result<Units, IoError> {
         Some(LengthUnit::Millimetres) => Units::Millimetres,
         Some(LengthUnit::Inches) => Units::Inches,
     })
+}
+
+/// The split of file `k` of `n` motion files taken from a folder (sorted by name), so that
+/// every folder of three or more gives a validation and a test motion, deterministically:
+/// one file trains; of two, the last tests; of 3 to 9, the last tests and the one before
+/// validates; of 10 or more, the 9th of each ten tests and the 10th validates.
+pub fn folder_split(k: usize, n: usize) -> Split {
+    match n {
+        0..=1 => Split::Train,
+        2 if k == 1 => Split::Test,
+        2 => Split::Train,
+        3..=9 if k + 1 == n => Split::Test,
+        3..=9 if k + 2 == n => Split::Validation,
+        3..=9 => Split::Train,
+        _ => match k % 10 {
+            8 => Split::Test,
+            9 => Split::Validation,
+            _ => Split::Train,
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn folders_of_three_or_more_get_validation_and_test_motions() {
+        let splits = |n: usize| (0..n).map(|k| folder_split(k, n)).collect::<Vec<_>>();
+        assert_eq!(splits(1), vec![Split::Train]);
+        assert_eq!(splits(2), vec![Split::Train, Split::Test]);
+        assert_eq!(
+            splits(4),
+            vec![Split::Train, Split::Train, Split::Validation, Split::Test]
+        );
+        for n in 3..40 {
+            let s = splits(n);
+            let count = |x: Split| s.iter().filter(|&&y| y == x).count();
+            assert!(
+                count(Split::Test) >= 1 && count(Split::Validation) >= 1,
+                "{n}"
+            );
+            if n < 10 {
+                assert_eq!(count(Split::Train), n - 2, "{n}");
+            } else {
+                assert!(count(Split::Train) * 5 >= n * 4, "{n}: {s:?}");
+            }
+        }
+    }
 }

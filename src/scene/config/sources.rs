@@ -110,7 +110,7 @@ pub enum MotionSource {
         name: Option<String>,
     },
     /// A motion file (BVH, or the animations of a glTF/GLB file): `path`, optional `units`,
-    /// `split`, `name`.
+    /// `split`, `name`, `joint_map`.
     File {
         /// Path, relative to the config file's folder.
         path: PathBuf,
@@ -121,6 +121,9 @@ pub enum MotionSource {
         /// Animation to take from a file holding several; default: all of them (each keeps
         /// its own name; a BVH motion is named after the file stem).
         name: Option<String>,
+        /// Joint map file (TOML, `[joints] AvatarJoint = "MotionJoint"`) overriding the
+        /// automatic joint mapping, relative to the config file's folder; default none.
+        joint_map: Option<PathBuf>,
     },
 }
 
@@ -146,6 +149,8 @@ struct RawSource {
     split: Option<Split>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     name: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    joint_map: Option<PathBuf>,
 }
 
 impl RawSource {
@@ -170,6 +175,7 @@ impl RawSource {
             ("fps", self.fps.is_some()),
             ("split", self.split.is_some()),
             ("name", self.name.is_some()),
+            ("joint_map", self.joint_map.is_some()),
         ];
         let kind = if self.builtin.is_some() {
             "built-in"
@@ -312,12 +318,13 @@ impl TryFrom<RawSource> for MotionSource {
                 })
             }
             (_, path) => {
-                raw.check("motion", expected, &["units", "split", "name"])?;
+                raw.check("motion", expected, &["units", "split", "name", "joint_map"])?;
                 Ok(Self::File {
                     path: path.unwrap_or_default(),
                     units: raw.units,
                     split,
                     name: raw.name,
+                    joint_map: raw.joint_map,
                 })
             }
         }
@@ -346,11 +353,13 @@ impl From<MotionSource> for RawSource {
                 units,
                 split,
                 name,
+                joint_map,
             } => Self {
                 path: Some(path),
                 units,
                 split: Some(split),
                 name,
+                joint_map,
                 ..Self::default()
             },
         }
