@@ -33,8 +33,7 @@ fn gamma_from_linear(rgb: vec3<f32>) -> vec3<f32> {
 
 // Final output: linear colour, encoded for the target format.
 fn encode_output(rgb: vec3<f32>, alpha: f32) -> vec4<f32> {
-    if globals.viewport.z > 0.5 {
-        return vec4<f32>(gamma_from_linear(rgb), alpha);
-    }
-    return vec4<f32>(rgb, alpha);
+    // A select, not a branch on a uniform (see the note in mesh.wgsl).
+    let encoded = select(rgb, gamma_from_linear(rgb), globals.viewport.z > 0.5);
+    return vec4<f32>(encoded, alpha);
 }

@@ -49,9 +49,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let dist = length(in.pos_in_world - globals.eye_in_world.xyz);
     let fade = clamp(1.0 - dist / (0.9 * globals.grid.z), 0.0, 1.0);
     let out = mix(background, color, fade * fade);
-    if globals.viewport.z > 0.5 {
-        return vec4<f32>(out, 1.0);
-    }
-    // sRGB target: the hardware encodes, so hand it (approximately) linear values.
-    return vec4<f32>(out * out, 1.0);
+    // sRGB target: the hardware encodes, so hand it (approximately) linear values. A select,
+    // not a branch on a uniform (see the note in mesh.wgsl).
+    return vec4<f32>(select(out * out, out, globals.viewport.z > 0.5), 1.0);
 }

@@ -37,12 +37,11 @@ fn vs_main(
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
     let two_sided = params.flags.x == 1u;
-    var base = params.base_color.rgb;
-    if params.flags.y == 1u {
-        base = in.color.rgb;
-    } else if two_sided && !front {
-        base = params.back_color.rgb;
-    }
+    // Selects, not branches on uniforms: Mesa's lavapipe (22.3) specialises a shader for the
+    // values of uniforms that steer an `if` and compiled a new variant on every draw of this
+    // pipeline, keeping about 1 MB each for good (issue 15's leak: ~2 MB per viewport frame).
+    let sided = select(params.base_color.rgb, params.back_color.rgb, two_sided && !front);
+    let base = select(sided, in.color.rgb, params.flags.y == 1u);
     // Normals of zero length (never expected) fall back to the view direction.
     let to_eye = globals.eye_in_world.xyz - in.pos_in_world;
     let v = normalize(select(vec3<f32>(0.0, 1.0, 0.0), to_eye, dot(to_eye, to_eye) > 1e-12));

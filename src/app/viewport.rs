@@ -26,6 +26,20 @@ struct ViewportGpu {
     render_state: egui_wgpu::RenderState,
     shared: Arc<Mutex<GpuShared>>,
     texture: egui::TextureId,
+    stats: ResourceStats,
+}
+
+/// Counts of the GPU resources the viewport has made, for tests and the leak check: while the
+/// viewport keeps its size, neither count may move from one frame to the next.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ResourceStats {
+    /// Render targets (colour + depth textures) created since the viewport was built.
+    pub targets_created: u64,
+    /// egui native textures the viewport holds registered now (one, re-pointed on resize).
+    pub registered_textures: u64,
+    /// Times the renderer created buffers for a mesh or the collision markers
+    /// ([`Renderer::buffer_allocations`]).
+    pub buffer_allocations: u64,
 }
 
 /// Smoothed frame timing for the debug overlay.
@@ -144,6 +158,11 @@ impl Viewport {
                 render_state: rs.clone(),
                 shared: Arc::new(Mutex::new(shared)),
                 texture,
+                stats: ResourceStats {
+                    targets_created: 1,
+                    registered_textures: 1,
+                    buffer_allocations: 0,
+                },
             }
         });
         Self {
@@ -162,6 +181,21 @@ impl Viewport {
     /// True when the viewport can draw (egui runs on wgpu).
     pub fn has_gpu(&self) -> bool {
         self.gpu.is_some()
+    }
+
+    /// What the viewport has allocated on the GPU (all zero without a GPU).
+    pub fn resource_stats(&self) -> ResourceStats {
+        let Some(gpu) = &self.gpu else {
+            return ResourceStats::default();
+        };
+        let buffer_allocations = gpu
+            .shared
+            .lock()
+            .map_or(0, |s| s.renderer.buffer_allocations());
+        ResourceStats {
+            buffer_allocations,
+            ..gpu.stats
+        }
     }
 
     /// Where the viewport was last laid out, in points.
@@ -256,7 +290,7 @@ impl Viewport {
         self.rect = Some(rect);
         self.handle_input(ui, &response);
         let painter = ui.painter_at(rect);
-        let Some(gpu) = &self.gpu else {
+        let Some(gpu) = &mut self.gpu else {
             painter.rect_filled(rect, 0.0, egui::Color32::from_rgb(36, 40, 48));
             painter.text(
                 rect.center(),
@@ -276,6 +310,7 @@ impl Viewport {
         if let Ok(mut shared) = gpu.shared.lock() {
             if shared.target.size() != size_px {
                 shared.target = shared.renderer.create_target(size_px);
+                gpu.stats.targets_created += 1;
                 let device = &gpu.render_state.device;
                 gpu.render_state
                     .renderer

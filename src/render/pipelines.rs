@@ -282,4 +282,23 @@ mod tests {
                 .unwrap_or_else(|e| panic!("{name}: {e:?}"));
         }
     }
+
+    /// Issue 15: lavapipe compiled (and kept) a new shader variant on every draw of a pipeline
+    /// whose shader branched on a uniform, about 1 MB a draw. Uniform-driven choices are
+    /// `select`s; `tests/leak.rs` measures the memory.
+    #[test]
+    fn no_shader_branches_on_a_uniform() {
+        for (name, source) in shader_sources() {
+            for (n, line) in source.lines().enumerate() {
+                let code = line.split("//").next().unwrap_or_default();
+                let branches = code.contains("if ") || code.contains("while ");
+                let on_uniform = code.contains("globals.") || code.contains("params.");
+                assert!(
+                    !(branches && on_uniform),
+                    "{name} line {}: a branch on a uniform: {line}",
+                    n + 1
+                );
+            }
+        }
+    }
 }

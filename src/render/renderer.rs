@@ -210,6 +210,7 @@ pub struct Renderer {
     points: Option<(wgpu::Buffer, usize)>,
     point_count: u32,
     ground_y: f32,
+    allocations: u64,
 }
 
 impl Renderer {
@@ -269,6 +270,7 @@ impl Renderer {
             points: None,
             point_count: 0,
             ground_y: 0.0,
+            allocations: 0,
         }
     }
 
@@ -291,7 +293,7 @@ impl Renderer {
     /// rewrites positions, normals and colours. An invalid mesh is dropped (not drawn) and
     /// reported; the rest of the frame is still uploaded.
     pub fn upload(&mut self, frame: &SceneFrame) -> Result<(), RenderError> {
-        let body = Self::upload_mesh(
+        let (body, new_body) = Self::upload_mesh(
             &self.device,
             &self.queue,
             &self.pipelines,
@@ -299,7 +301,7 @@ impl Renderer {
             "body",
             frame.body.as_ref(),
         );
-        let garment = Self::upload_mesh(
+        let (garment, new_garment) = Self::upload_mesh(
             &self.device,
             &self.queue,
             &self.pipelines,
@@ -307,6 +309,7 @@ impl Renderer {
             "garment",
             frame.garment.as_ref(),
         );
+        self.allocations += u64::from(new_body) + u64::from(new_garment);
         self.upload_points(&frame.collision_points);
         self.ground_y = if frame.ground_y.is_finite() {
             frame.ground_y
@@ -316,6 +319,7 @@ impl Renderer {
         body.and(garment)
     }
 
+    /// Uploads one mesh into `slot`; the flag is true when new buffers were created.
     fn upload_mesh(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -323,20 +327,25 @@ impl Renderer {
         slot: &mut Option<GpuMesh>,
         name: &str,
         mesh: Option<&MeshFrame>,
-    ) -> Result<(), RenderError> {
+    ) -> (Result<(), RenderError>, bool) {
         let Some(mesh) = mesh else {
             *slot = None;
-            return Ok(());
+            return (Ok(()), false);
         };
         if let Err(e) = validate(name, mesh) {
             *slot = None;
-            return Err(e);
+            return (Err(e), false);
         }
         match slot {
-            Some(gpu) if gpu.same_topology(mesh) => gpu.update(queue, mesh),
-            _ => *slot = Some(GpuMesh::new(device, pipelines, name, mesh)),
+            Some(gpu) if gpu.same_topology(mesh) => {
+                gpu.update(queue, mesh);
+                (Ok(()), false)
+            }
+            _ => {
+                *slot = Some(GpuMesh::new(device, pipelines, name, mesh));
+                (Ok(()), true)
+            }
         }
-        Ok(())
     }
 
     fn upload_points(&mut self, points: &[crate::geometry::Vec3]) {
@@ -364,6 +373,7 @@ impl Renderer {
                 mapped_at_creation: false,
             });
             self.points = Some((buffer, capacity));
+            self.allocations += 1;
         }
         if let Some((buffer, _)) = &self.points {
             self.queue
@@ -519,6 +529,13 @@ impl Renderer {
             pass.draw(0..6, 0..self.point_count);
         }
         Ok(())
+    }
+
+    /// How many times this renderer has created GPU buffers for a mesh or for the collision
+    /// markers (a new connectivity or more markers than fit). Playing a motion or moving the
+    /// camera only rewrites buffers, so this stays put; the leak test checks that it does.
+    pub fn buffer_allocations(&self) -> u64 {
+        self.allocations
     }
 
     /// Vertex counts of the uploaded body and garment (0 when absent), for tests and overlays.
