@@ -1,6 +1,6 @@
 //! The `neural-cloth` command line: with no subcommand it opens the authoring app; the
 //! subcommands run the same jobs headless (inspect, train, eval, simulate, bake, bench,
-//! report, screenshot).
+//! report, screenshot, soak).
 
 mod cli;
 

@@ -9,6 +9,7 @@ pub mod headless;
 mod inspect;
 mod report;
 mod screenshot;
+mod soak;
 mod train;
 
 use std::path::PathBuf;
@@ -59,6 +60,9 @@ pub enum Command {
     Report(report::ReportArgs),
     /// Render the viewport offscreen to a PNG (works without a display).
     Screenshot(screenshot::ScreenshotArgs),
+    /// Train with preview inference and periodic bakes alongside, logging memory, file
+    /// descriptors and threads every minute (a long-run leak check).
+    Soak(soak::SoakArgs),
 }
 
 /// Runs the parsed command line.
@@ -93,6 +97,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Bench(args)) => bench::run(args),
         Some(Command::Report(args)) => report::run(args),
         Some(Command::Screenshot(args)) => screenshot::run(args),
+        Some(Command::Soak(args)) => soak::run(args),
     }
 }
 
