@@ -2,10 +2,10 @@
 //! sequence (the same baking the CLI's `bake` runs; the app only collects the request, runs it
 //! on a background thread and shows progress and the result).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::bake::{BakeFormat, BakeOptions, Preset, frame_range};
+use crate::bake::{BakeFormat, BakeOptions, Preset, frame_range, sibling_path};
 use crate::model::InferenceWeights;
 use crate::scene::{Avatar, Garment, Motion};
 
@@ -72,6 +72,30 @@ impl ExportFormat {
         p.with_extension(ext).display().to_string()
     }
 
+    /// The format a typed path names by its extension (`.glb`, `.usda`, `.pc2`, `.mdd`); None
+    /// for no or another extension (the OBJ sequence is a folder and has none).
+    pub fn from_path(path: &str) -> Option<Self> {
+        let ext = Path::new(path.trim())
+            .extension()?
+            .to_str()?
+            .to_ascii_lowercase();
+        Self::ALL
+            .into_iter()
+            .find(|f| *f != Self::ObjSequence && f.extension() == ext)
+    }
+
+    /// Whether the output is a point cache (PC2, MDD): points only, applied to a mesh of the
+    /// same vertex order (which [`write_rest_obj`] can write beside it).
+    pub fn is_point_cache(self) -> bool {
+        matches!(self, Self::Pc2 | Self::Mdd)
+    }
+
+    /// Whether "also write the body" makes a sibling file (PC2, MDD, OBJ); glTF and USD put
+    /// the body into the same file.
+    pub fn body_is_a_sibling(self) -> bool {
+        matches!(self, Self::Pc2 | Self::Mdd | Self::ObjSequence)
+    }
+
     /// File extension (for the OBJ sequence, of each frame file).
     pub fn extension(self) -> &'static str {
         match self {
@@ -97,6 +121,15 @@ pub struct ExportSettings {
     pub motion: usize,
     /// Destination tool (None: the program's own convention); ignored for glTF.
     pub preset: Option<Preset>,
+    /// Also write the posed body (PC2/MDD/OBJ: a `.body` sibling; glTF, USD: in the same
+    /// file). Default false.
+    pub include_body: bool,
+    /// PC2/MDD: also write the garment's rest pose as an OBJ of the same vertex order (what
+    /// Blender's Mesh Cache modifier is put on). Default false.
+    pub rest_obj: bool,
+    /// Existing outputs the user was asked about before overwriting (Some: the question is
+    /// shown and the export waits for the answer).
+    pub confirm_overwrite: Option<Vec<PathBuf>>,
     /// Outcome of the last export: a summary or an error.
     pub last_result: Option<Result<String, String>>,
 }
@@ -109,9 +142,70 @@ impl Default for ExportSettings {
             path: "export/garment.glb".into(),
             motion: 0,
             preset: None,
+            include_body: false,
+            rest_obj: false,
+            confirm_overwrite: None,
             last_result: None,
         }
     }
+}
+
+impl ExportSettings {
+    /// Opens the dialog on `motion`, the motion on screen.
+    pub fn show_for(&mut self, motion: usize) {
+        self.open = true;
+        self.motion = motion;
+        self.confirm_overwrite = None;
+    }
+
+    /// Every file (or folder) the export will write, as typed (relative to the working
+    /// folder): the output, the body's sibling when asked for, the rest-pose OBJ when asked for.
+    pub fn outputs(&self) -> Vec<PathBuf> {
+        let out = PathBuf::from(self.path.trim());
+        let mut outputs = vec![out.clone()];
+        if self.include_body && self.format.body_is_a_sibling() {
+            outputs.push(sibling_path(&out, "body"));
+        }
+        if self.rest_obj && self.format.is_point_cache() {
+            outputs.push(rest_obj_path(&out));
+        }
+        outputs
+    }
+}
+
+/// Where the rest-pose OBJ of a point cache goes: beside it, same name, `.obj`
+/// (`walk.pc2` → `walk.obj`).
+pub fn rest_obj_path(out: &Path) -> PathBuf {
+    out.with_extension("obj")
+}
+
+/// Writes `garment`'s rest pose (template positions, faces, UVs, in its vertex order, the
+/// order of every baked point cache) to `path` as one OBJ, in `preset`'s axis and units as
+/// the OBJ sequence writes them. Atomic: a failure leaves no file.
+pub fn write_rest_obj(
+    garment: &Garment,
+    preset: Option<Preset>,
+    path: &Path,
+) -> Result<PathBuf, String> {
+    let convention = BakeOptions {
+        format: BakeFormat::Obj,
+        preset,
+        ..Default::default()
+    }
+    .convention();
+    let positions = convention.apply_all(&garment.mesh.positions);
+    let text = crate::io::export::obj_seq::obj_text(
+        &positions,
+        &garment.mesh.faces,
+        garment.mesh.uvs.as_deref(),
+        &format!(
+            "rest pose of {}, the vertex order of its point caches; preset {}",
+            garment.name,
+            preset.map_or("none", Preset::name)
+        ),
+    );
+    crate::io::export::atomic::write_atomic(path, text.as_bytes()).map_err(|e| e.to_string())?;
+    Ok(path.to_path_buf())
 }
 
 /// Everything needed to bake one sequence.
@@ -135,6 +229,10 @@ pub struct ExportRequest {
     pub path: PathBuf,
     /// Destination tool (None: the program's own convention).
     pub preset: Option<Preset>,
+    /// Also write the posed body ([`ExportSettings::include_body`]).
+    pub include_body: bool,
+    /// Also write the rest-pose OBJ of a point cache ([`write_rest_obj`]).
+    pub rest_obj: bool,
 }
 
 /// Bakes and writes sequences; returns a one-line summary or an error for the UI.
@@ -159,15 +257,16 @@ pub struct ExportEstimate {
 }
 
 impl ExportEstimate {
-    /// Frames and size of baking `motion` at `fps` with the app's settings (the body is
-    /// always included); an error when the frame rate or the motion gives no frame.
+    /// Frames and size of baking `motion` at `fps` with the dialog's `settings` (format, body,
+    /// rest-pose OBJ); an error when the frame rate or the motion gives no frame.
     pub fn of(
-        format: ExportFormat,
+        settings: &ExportSettings,
         motion: &Motion,
         fps: f32,
         garment: &Garment,
         avatar: &Avatar,
     ) -> Result<Self, String> {
+        let format = settings.format;
         let options = BakeOptions {
             fps,
             ..Default::default()
@@ -178,14 +277,23 @@ impl ExportEstimate {
         let garment_bytes =
             f.estimate_bytes(frames, garment.vertex_count(), garment.mesh.faces.len());
         let body = &avatar.bind_mesh;
-        let body_bytes = match f {
+        let body_bytes = match (settings.include_body, f) {
+            (false, _) => 0,
             // The glTF body is one static skinned mesh, not a per-frame cache.
-            BakeFormat::Gltf => body.positions.len() as u64 * 60 + body.faces.len() as u64 * 12,
-            _ => f.estimate_bytes(frames, body.positions.len(), body.faces.len()),
+            (true, BakeFormat::Gltf) => {
+                body.positions.len() as u64 * 60 + body.faces.len() as u64 * 12
+            }
+            (true, _) => f.estimate_bytes(frames, body.positions.len(), body.faces.len()),
+        };
+        let rest_bytes = match settings.rest_obj && format.is_point_cache() {
+            true => {
+                BakeFormat::Obj.estimate_bytes(1, garment.vertex_count(), garment.mesh.faces.len())
+            }
+            false => 0,
         };
         Ok(Self {
             frames,
-            bytes: garment_bytes + body_bytes,
+            bytes: garment_bytes + body_bytes + rest_bytes,
         })
     }
 
@@ -232,41 +340,127 @@ mod tests {
     }
 
     #[test]
+    fn a_typed_extension_names_its_format() {
+        assert_eq!(
+            ExportFormat::from_path("a/walk.pc2"),
+            Some(ExportFormat::Pc2)
+        );
+        assert_eq!(
+            ExportFormat::from_path(" walk.MDD "),
+            Some(ExportFormat::Mdd)
+        );
+        assert_eq!(
+            ExportFormat::from_path("walk.usda"),
+            Some(ExportFormat::Usd)
+        );
+        assert_eq!(ExportFormat::from_path("walk.glb"), Some(ExportFormat::Glb));
+        assert_eq!(ExportFormat::from_path("walk.obj"), None);
+        assert_eq!(ExportFormat::from_path("walk"), None);
+        for f in ExportFormat::ALL {
+            let path = f.with_extension("x/walk.glb");
+            let back = ExportFormat::from_path(&path);
+            assert!(back == Some(f) || f == ExportFormat::ObjSequence, "{path}");
+        }
+    }
+
+    #[test]
+    fn outputs_are_the_requested_files_only() {
+        let mut s = ExportSettings {
+            format: ExportFormat::Pc2,
+            path: "out/walk.pc2".into(),
+            ..Default::default()
+        };
+        assert_eq!(s.outputs(), vec![PathBuf::from("out/walk.pc2")]);
+        s.include_body = true;
+        s.rest_obj = true;
+        assert_eq!(
+            s.outputs(),
+            ["out/walk.pc2", "out/walk.body.pc2", "out/walk.obj"].map(PathBuf::from)
+        );
+        // glTF keeps the body in its one file and has no rest OBJ.
+        s.format = ExportFormat::Glb;
+        s.path = "out/walk.glb".into();
+        assert_eq!(s.outputs(), vec![PathBuf::from("out/walk.glb")]);
+        s.show_for(3);
+        assert!(s.open && s.motion == 3);
+    }
+
+    #[test]
+    fn the_rest_obj_keeps_the_vertex_order_and_the_preset() {
+        let scene = crate::scene::procedural::default_scene().unwrap();
+        let dir = std::env::temp_dir().join(format!("nc-rest-obj-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("walk.obj");
+        write_rest_obj(&scene.garment, Some(Preset::Maya), &path).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let numbers = |line: &str| -> Vec<f32> {
+            line.split_whitespace()
+                .skip(1)
+                .map(|v| v.split('/').next().unwrap().parse().unwrap())
+                .collect()
+        };
+        let points: Vec<Vec<f32>> = text
+            .lines()
+            .filter(|l| l.starts_with("v "))
+            .map(numbers)
+            .collect();
+        let faces: Vec<Vec<f32>> = text
+            .lines()
+            .filter(|l| l.starts_with("f "))
+            .map(numbers)
+            .collect();
+        let rest = &scene.garment.mesh;
+        assert_eq!(points.len(), rest.positions.len());
+        for (read, p) in points.iter().zip(&rest.positions) {
+            let want = [p.x * 100.0, p.y * 100.0, p.z * 100.0];
+            assert_eq!(
+                read.as_slice(),
+                want.as_slice(),
+                "Maya: centimetres, same order"
+            );
+        }
+        assert_eq!(faces.len(), rest.faces.len());
+        for (read, f) in faces.iter().zip(&rest.faces) {
+            assert_eq!(read.as_slice(), f.map(|i| (i + 1) as f32).as_slice());
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
     fn the_estimate_counts_the_frames_of_the_bake() {
         let scene = crate::scene::procedural::default_scene().unwrap();
         let motion = &scene.motions[0].0;
-        let e = ExportEstimate::of(
-            ExportFormat::Pc2,
-            motion,
-            30.0,
-            &scene.garment,
-            &scene.avatar,
-        )
-        .unwrap();
+        let pc2 = ExportSettings {
+            format: ExportFormat::Pc2,
+            include_body: true,
+            ..Default::default()
+        };
+        let e = ExportEstimate::of(&pc2, motion, 30.0, &scene.garment, &scene.avatar).unwrap();
         let frames = (motion.duration_secs() * 30.0 + 1e-3).floor() as usize + 1;
         assert_eq!(e.frames, frames);
         // PC2: a 32-byte header and 12 bytes a point a frame, garment and body.
         let points = scene.garment.vertex_count() + scene.avatar.bind_mesh.positions.len();
         assert_eq!(e.bytes, 64 + (frames * points * 12) as u64);
         assert!(e.summary().starts_with(&format!("{frames} frames, about ")));
-        let usd = ExportEstimate::of(
-            ExportFormat::Usd,
-            motion,
-            30.0,
-            &scene.garment,
-            &scene.avatar,
-        )
-        .unwrap();
+        let usd_settings = ExportSettings {
+            format: ExportFormat::Usd,
+            ..pc2.clone()
+        };
+        let usd =
+            ExportEstimate::of(&usd_settings, motion, 30.0, &scene.garment, &scene.avatar).unwrap();
         assert!(usd.bytes > e.bytes * 2, "text is larger than binary");
+        // Without the body, only the garment's points.
+        let alone = ExportSettings {
+            include_body: false,
+            ..pc2.clone()
+        };
+        let alone = ExportEstimate::of(&alone, motion, 30.0, &scene.garment, &scene.avatar);
+        assert_eq!(
+            alone.unwrap().bytes,
+            32 + (frames * scene.garment.vertex_count() * 12) as u64
+        );
         assert!(
-            ExportEstimate::of(
-                ExportFormat::Usd,
-                motion,
-                0.0,
-                &scene.garment,
-                &scene.avatar
-            )
-            .is_err()
+            ExportEstimate::of(&usd_settings, motion, 0.0, &scene.garment, &scene.avatar).is_err()
         );
     }
 }

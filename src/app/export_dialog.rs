@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use super::NeuralClothApp;
 use super::background::{BackgroundJob, poll_job};
-use super::export::{ExportEstimate, ExportFormat, ExportRequest, Exporter};
+use super::export::{ExportEstimate, ExportFormat, ExportRequest, ExportSettings, Exporter};
 use super::state::Level;
 use crate::bake::Preset;
 
@@ -89,69 +89,33 @@ impl NeuralClothApp {
         let estimate = self.export_estimate();
         let running = self.export_job.is_running();
         let progress = self.export_job.progress();
-        let (mut run, mut cancel) = (false, false);
+        let (mut run, mut cancel, mut overwrite) = (false, false, false);
         egui::Window::new("Export baked sequence")
             .open(&mut open)
             .collapsible(false)
             .show(ui.ctx(), |ui| {
                 let settings = &mut self.state.export;
-                ui.add_enabled_ui(!running, |ui| {
-                    let before = settings.format;
-                    egui::ComboBox::from_label("format")
-                        .selected_text(settings.format.label())
-                        .show_ui(ui, |ui| {
-                            for f in ExportFormat::ALL {
-                                ui.selectable_value(&mut settings.format, f, f.label());
-                            }
-                        });
-                    if settings.format != before {
-                        settings.path = settings.format.with_extension(&settings.path);
-                    }
-                    ui.add_enabled_ui(settings.format.takes_preset(), |ui| {
-                        egui::ComboBox::from_label("preset")
-                            .selected_text(preset_label(settings.preset))
-                            .show_ui(ui, |ui| {
-                                ui.selectable_value(&mut settings.preset, None, preset_label(None));
-                                for p in Preset::ALL {
-                                    ui.selectable_value(&mut settings.preset, Some(p), p.label());
-                                }
-                            });
-                    });
-                    if !settings.format.takes_preset() {
-                        ui.weak("glTF is always Y up, metres; importers convert it.");
-                    }
-                    let motion_name = motions
-                        .get(settings.motion)
-                        .cloned()
-                        .unwrap_or_else(|| "none".into());
-                    egui::ComboBox::from_label("motion")
-                        .selected_text(motion_name)
-                        .show_ui(ui, |ui| {
-                            for (k, name) in motions.iter().enumerate() {
-                                ui.selectable_value(&mut settings.motion, k, name);
-                            }
-                        });
-                    ui.horizontal(|ui| {
-                        let label = ui.label("path");
-                        ui.text_edit_singleline(&mut settings.path)
-                            .labelled_by(label.id);
-                        if ui.button("Browse…").clicked() {
-                            let ext = settings.format.extension();
-                            if let Some(p) = rfd::FileDialog::new()
-                                .add_filter(settings.format.label(), &[ext])
-                                .save_file()
-                            {
-                                settings.path = p.display().to_string();
-                            }
-                        }
-                    });
-                });
+                ui.add_enabled_ui(!running, |ui| settings_ui(ui, settings, &motions));
                 match &estimate {
                     Ok(e) => ui.label(e.summary()),
                     Err(e) => ui.colored_label(ui.visuals().error_fg_color, e),
                 };
+                outputs_ui(ui, &settings.outputs());
                 ui.label(format!("w = {:.2} (from the timeline)", self.state.w));
-                if running {
+                if let Some(existing) = &settings.confirm_overwrite {
+                    let names: Vec<String> =
+                        existing.iter().map(|p| p.display().to_string()).collect();
+                    ui.colored_label(
+                        ui.visuals().warn_fg_color,
+                        format!("{} already exists. Overwrite?", names.join(", ")),
+                    );
+                    ui.horizontal(|ui| {
+                        overwrite = ui.button("Overwrite").clicked();
+                        if ui.button("Keep the existing files").clicked() {
+                            settings.confirm_overwrite = None;
+                        }
+                    });
+                } else if running {
                     let (done, total) = progress.unwrap_or((0, 0));
                     let fraction = if total > 0 {
                         done as f32 / total as f32
@@ -180,7 +144,26 @@ impl NeuralClothApp {
             self.export_job.cancel();
         }
         if run {
+            self.export_clicked();
+        }
+        if overwrite {
+            self.state.export.confirm_overwrite = None;
             self.start_export();
+        }
+    }
+
+    /// Export pressed: asks first when an output exists, otherwise starts.
+    fn export_clicked(&mut self) {
+        let existing: Vec<PathBuf> = self
+            .state
+            .export
+            .outputs()
+            .into_iter()
+            .filter(|p| p.exists())
+            .collect();
+        match existing.is_empty() {
+            true => self.start_export(),
+            false => self.state.export.confirm_overwrite = Some(existing),
         }
     }
 
@@ -199,7 +182,7 @@ impl NeuralClothApp {
             .get(settings.motion)
             .ok_or("choose a motion")?;
         ExportEstimate::of(
-            settings.format,
+            settings,
             motion,
             self.state.train_config.fps,
             garment,
@@ -229,6 +212,8 @@ impl NeuralClothApp {
                     format: settings.format,
                     path: PathBuf::from(settings.path.trim()),
                     preset: settings.preset.filter(|_| settings.format.takes_preset()),
+                    include_body: settings.include_body,
+                    rest_obj: settings.rest_obj && settings.format.is_point_cache(),
                 };
                 self.export_job
                     .start(exporter, request, self.notify.clone())
@@ -242,6 +227,101 @@ impl NeuralClothApp {
                 self.state.export.last_result = Some(Err(e));
             }
         }
+    }
+}
+
+/// Format, preset, extra outputs, motion and path. Changing the format gives the path its
+/// extension; typing a path with another format's extension selects that format. Any change
+/// withdraws a pending overwrite question.
+fn settings_ui(ui: &mut egui::Ui, settings: &mut ExportSettings, motions: &[String]) {
+    let before = settings.clone();
+    egui::ComboBox::from_label("format")
+        .selected_text(settings.format.label())
+        .show_ui(ui, |ui| {
+            for f in ExportFormat::ALL {
+                ui.selectable_value(&mut settings.format, f, f.label());
+            }
+        });
+    if settings.format != before.format {
+        settings.path = settings.format.with_extension(&settings.path);
+    }
+    ui.add_enabled_ui(settings.format.takes_preset(), |ui| {
+        egui::ComboBox::from_label("preset")
+            .selected_text(preset_label(settings.preset))
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut settings.preset, None, preset_label(None));
+                for p in Preset::ALL {
+                    ui.selectable_value(&mut settings.preset, Some(p), p.label());
+                }
+            });
+    });
+    if !settings.format.takes_preset() {
+        ui.weak("glTF is always Y up, metres; importers convert it.");
+    }
+    let body_hint = match settings.format.body_is_a_sibling() {
+        true => "a second file beside the garment's, NAME.body.EXT",
+        false => "a second mesh in the same file",
+    };
+    ui.checkbox(&mut settings.include_body, "also write the body")
+        .on_hover_text(body_hint);
+    if settings.format.is_point_cache() {
+        ui.checkbox(&mut settings.rest_obj, "also write the rest-pose OBJ")
+            .on_hover_text(
+                "The garment's mesh in the cache's vertex order, NAME.obj: import it (keep the \
+                 vertex order) and put Blender's Mesh Cache modifier on it.",
+            );
+    }
+    let motion_name = motions
+        .get(settings.motion)
+        .cloned()
+        .unwrap_or_else(|| "none".into());
+    egui::ComboBox::from_label("motion")
+        .selected_text(motion_name)
+        .show_ui(ui, |ui| {
+            for (k, name) in motions.iter().enumerate() {
+                ui.selectable_value(&mut settings.motion, k, name);
+            }
+        });
+    ui.horizontal(|ui| {
+        let label = ui.label("path");
+        let edit = ui
+            .text_edit_singleline(&mut settings.path)
+            .labelled_by(label.id);
+        if edit.changed()
+            && let Some(f) = ExportFormat::from_path(&settings.path)
+        {
+            settings.format = f;
+        }
+        if ui.button("Browse…").clicked() {
+            let ext = settings.format.extension();
+            if let Some(p) = rfd::FileDialog::new()
+                .add_filter(settings.format.label(), &[ext])
+                .save_file()
+            {
+                settings.path = p.display().to_string();
+            }
+        }
+    });
+    let changed = settings.format != before.format
+        || settings.path != before.path
+        || settings.include_body != before.include_body
+        || settings.rest_obj != before.rest_obj;
+    if changed {
+        settings.confirm_overwrite = None;
+    }
+}
+
+/// Where the files go: every output with its full path, existing ones marked.
+fn outputs_ui(ui: &mut egui::Ui, outputs: &[PathBuf]) {
+    let here = std::env::current_dir().ok();
+    ui.label("writes:");
+    for p in outputs {
+        let full = match (&here, p.is_absolute()) {
+            (Some(dir), false) => dir.join(p),
+            _ => p.clone(),
+        };
+        let exists = if p.exists() { " (exists)" } else { "" };
+        ui.weak(format!("  {}{exists}", full.display()));
     }
 }
 
@@ -291,6 +371,8 @@ mod tests {
             format: ExportFormat::Usd,
             path: PathBuf::from("x.usda"),
             preset: Some(Preset::Unreal),
+            include_body: false,
+            rest_obj: false,
         }
     }
 

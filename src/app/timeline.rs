@@ -83,8 +83,9 @@ impl NeuralClothApp {
                     self.state.save_project(&path);
                 }
                 ui.separator();
-                ui.label("Project path:");
-                ui.text_edit_singleline(&mut self.state.typed.project);
+                let label = ui.label("Project path:");
+                ui.text_edit_singleline(&mut self.state.typed.project)
+                    .labelled_by(label.id);
                 ui.horizontal(|ui| {
                     let typed = PathBuf::from(self.state.typed.project.trim());
                     let has_path = !self.state.typed.project.trim().is_empty();
@@ -115,7 +116,8 @@ impl NeuralClothApp {
                 });
                 ui.separator();
                 if ui.button("Export baked sequence…").clicked() {
-                    self.state.export.open = true;
+                    let on_screen = self.state.playback.motion;
+                    self.state.export.show_for(on_screen);
                 }
             });
             ui.menu_button("View", |ui| {

@@ -114,7 +114,7 @@ impl neural_cloth::app::export::Exporter for RealExporter {
             out: request.path,
             fps: request.fps,
             w: request.w,
-            include_body: true,
+            include_body: request.include_body,
             preset: request.preset,
             ..Default::default()
         };
@@ -127,11 +127,19 @@ impl neural_cloth::app::export::Exporter for RealExporter {
             progress,
         )
         .map_err(|e| e.to_string())?;
+        let mut outputs = report.outputs.clone();
+        if request.rest_obj && request.format.is_point_cache() {
+            let path = neural_cloth::app::export::rest_obj_path(&options.out);
+            outputs.push(neural_cloth::app::export::write_rest_obj(
+                &request.garment,
+                request.preset,
+                &path,
+            )?);
+        }
         let mut line = format!(
             "wrote {} frames to {}",
             report.frames,
-            report
-                .outputs
+            outputs
                 .iter()
                 .map(|p| p.display().to_string())
                 .collect::<Vec<_>>()
