@@ -5,11 +5,14 @@
 //! Update snapshots with `UPDATE_SNAPSHOTS=1 cargo test --release --test app`.
 //!
 //! Layout: this file holds the shared helpers and most tests; the export dialog's tests live in
-//! `app/export_dialog.rs` (one test binary). The memory-leak tests are in `tests/leak.rs`, a
-//! binary of their own so that no other test shares their process's resident memory.
+//! `app/export_dialog.rs`, start-up and the status bar in `app/status.rs` (one test binary).
+//! The memory-leak tests are in `tests/leak.rs`, a binary of their own so that no other test
+//! shares their process's resident memory.
 
 #[path = "app/export_dialog.rs"]
 mod export_dialog;
+#[path = "app/status.rs"]
+mod status;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -12,7 +12,8 @@ pub struct Playback {
     pub motion: usize,
     /// Current time in seconds, in `[0, duration]`.
     pub time_secs: f32,
-    /// Whether time advances each frame.
+    /// Whether time advances each frame. Default false: the app opens paused, so that a
+    /// freshly opened app does not redraw (a full core on a software renderer) until asked.
     pub playing: bool,
     /// Speed multiplier in [`MIN_SPEED`, `MAX_SPEED`]; default 1.
     pub speed: f32,
@@ -25,7 +26,7 @@ impl Default for Playback {
         Self {
             motion: 0,
             time_secs: 0.0,
-            playing: true,
+            playing: false,
             speed: 1.0,
             looping: true,
         }
@@ -98,6 +99,7 @@ mod tests {
     fn advance_loops_and_respects_speed() {
         let mut p = Playback {
             speed: 2.0,
+            playing: true,
             ..Default::default()
         };
         assert!(p.advance(0.1, 1.0));
@@ -113,12 +115,21 @@ mod tests {
     fn without_looping_it_stops_at_the_end() {
         let mut p = Playback {
             looping: false,
+            playing: true,
             ..Default::default()
         };
         p.seek(0.9, 1.0);
         p.advance(0.2, 1.0);
         assert_eq!(p.time_secs, 1.0);
         assert!(!p.playing);
+    }
+
+    #[test]
+    fn starts_paused() {
+        let mut p = Playback::default();
+        assert!(!p.playing);
+        assert!(!p.advance(0.1, 1.0), "no time passes until play is pressed");
+        assert_eq!(p.time_secs, 0.0);
     }
 
     #[test]

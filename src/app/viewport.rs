@@ -42,7 +42,10 @@ pub struct ResourceStats {
     pub buffer_allocations: u64,
 }
 
-/// Smoothed frame timing for the debug overlay.
+/// Intervals between viewport frames longer than this are idle gaps, not frame times, ms.
+const IDLE_GAP_MS: f64 = 1000.0;
+
+/// Smoothed frame timing for the status bar and the debug overlay.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FrameTiming {
     /// Exponential moving average of the interval between viewport frames, ms.
@@ -198,6 +201,13 @@ impl Viewport {
         }
     }
 
+    /// The status bar's frame time: "viewport 16.7 ms/frame (60 fps)", None before two frames
+    /// have been drawn close enough together to time.
+    pub fn frame_time_text(&self) -> Option<String> {
+        let ms = self.timing.frame_ms;
+        (ms > 0.0).then(|| format!("viewport {ms:.1} ms/frame ({:.0} fps)", 1e3 / ms))
+    }
+
     /// Where the viewport was last laid out, in points.
     pub fn rect(&self) -> Option<egui::Rect> {
         self.rect
@@ -279,11 +289,14 @@ impl Viewport {
         self.follow_body(frame);
         if let Some(last) = self.last_frame.replace(started) {
             let dt_ms = last.elapsed().as_secs_f64() * 1e3;
-            self.timing.frame_ms = if self.timing.frame_ms > 0.0 {
-                0.9 * self.timing.frame_ms + 0.1 * dt_ms
-            } else {
-                dt_ms
-            };
+            // A longer gap is a pause between redraws (nothing moved), not a frame time.
+            if dt_ms <= IDLE_GAP_MS {
+                self.timing.frame_ms = if self.timing.frame_ms > 0.0 {
+                    0.9 * self.timing.frame_ms + 0.1 * dt_ms
+                } else {
+                    dt_ms
+                };
+            }
         }
         let size = ui.available_size().max(egui::vec2(32.0, 32.0));
         let (rect, response) = ui.allocate_exact_size(size, egui::Sense::click_and_drag());
