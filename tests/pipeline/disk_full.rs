@@ -244,25 +244,33 @@ fn a_bake_on_a_full_disk_fails_cleanly_and_keeps_the_previous_file() {
     };
     let normal = tempfile::tempdir().unwrap();
     small_run(&normal.path().join("run"), 1);
-    let out = disk.path.join("walk.pc2");
-    std::fs::write(&out, b"the previous bake").unwrap();
     disk.fill(200);
-    let output = Command::new(env!("CARGO_BIN_EXE_neural-cloth"))
-        .args(["bake", "run", "--motion", "walk", "--fps", "1000", "--out"])
-        .arg(&out)
-        .current_dir(normal.path())
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(!output.status.success(), "{stderr}");
-    let error = stderr
-        .lines()
-        .find(|l| l.starts_with("error:"))
-        .unwrap_or_else(|| panic!("{stderr}"));
-    assert!(
-        error.contains("No space left on device") && error.ends_with(&out.display().to_string()),
-        "{error}"
-    );
-    assert_eq!(std::fs::read(&out).unwrap(), b"the previous bake");
-    assert!(temporaries(&disk.path).is_empty(), "a partial file is left");
+    // Every streaming writer: the point caches and USD (text, frames streamed to disk).
+    for (format, name) in [("pc2", "walk.pc2"), ("mdd", "walk.mdd"), ("usd", "walk.usda")] {
+        let out = disk.path.join(name);
+        std::fs::write(&out, b"the previous bake").unwrap();
+        let output = Command::new(env!("CARGO_BIN_EXE_neural-cloth"))
+            .args(["bake", "run", "--motion", "walk", "--fps", "1000"])
+            .args(["--format", format, "--out"])
+            .arg(&out)
+            .current_dir(normal.path())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{format}: {stderr}");
+        let error = stderr
+            .lines()
+            .find(|l| l.starts_with("error:"))
+            .unwrap_or_else(|| panic!("{format}: {stderr}"));
+        assert!(
+            error.contains("No space left on device")
+                && error.ends_with(&out.display().to_string()),
+            "{format}: {error}"
+        );
+        assert_eq!(std::fs::read(&out).unwrap(), b"the previous bake", "{format}");
+        assert!(
+            temporaries(&disk.path).is_empty(),
+            "{format}: a partial file is left"
+        );
+    }
 }
