@@ -246,7 +246,11 @@ fn a_bake_on_a_full_disk_fails_cleanly_and_keeps_the_previous_file() {
     small_run(&normal.path().join("run"), 1);
     disk.fill(200);
     // Every streaming writer: the point caches and USD (text, frames streamed to disk).
-    for (format, name) in [("pc2", "walk.pc2"), ("mdd", "walk.mdd"), ("usd", "walk.usda")] {
+    for (format, name) in [
+        ("pc2", "walk.pc2"),
+        ("mdd", "walk.mdd"),
+        ("usd", "walk.usda"),
+    ] {
         let out = disk.path.join(name);
         std::fs::write(&out, b"the previous bake").unwrap();
         let output = Command::new(env!("CARGO_BIN_EXE_neural-cloth"))
@@ -267,7 +271,11 @@ fn a_bake_on_a_full_disk_fails_cleanly_and_keeps_the_previous_file() {
                 && error.ends_with(&out.display().to_string()),
             "{format}: {error}"
         );
-        assert_eq!(std::fs::read(&out).unwrap(), b"the previous bake", "{format}");
+        assert_eq!(
+            std::fs::read(&out).unwrap(),
+            b"the previous bake",
+            "{format}"
+        );
         assert!(
             temporaries(&disk.path).is_empty(),
             "{format}: a partial file is left"
