@@ -51,7 +51,7 @@ pub const CORE_JOINTS: [&str; 10] = [
 ];
 
 /// Rig prefixes removed before matching (compared in lower case, after the namespace).
-const PREFIXES: [&str; 10] = [
+const PREFIXES: [&str; 9] = [
     "mixamorig",
     "def-",
     "org-",
@@ -61,7 +61,6 @@ const PREFIXES: [&str; 10] = [
     "cc_base_",
     "m_avg_",
     "f_avg_",
-    "b_",
 ];
 
 /// Which side of the body a joint name says it is on.
