@@ -3,7 +3,8 @@
 //! skinning against an independent glTF skinning, retargeting of every CMU clip, typed errors
 //! for bad input, and a mutation test (random byte flips, truncations and splices) asserting
 //! that no importer panics. The USD export is read back by Pixar's usd-core and checked with
-//! its validators (`io/usd_export.rs`).
+//! its validators (`io/usd_export.rs`). Retargeting across rig naming conventions, rest poses,
+//! glTF rigs and joint maps, on fixtures written by our own code (`io/rigs.rs`).
 //!
 //! Layout: this file holds the shared helpers; the tests live in `io/*.rs` (one test binary).
 
@@ -17,6 +18,8 @@ mod motions;
 mod mutation;
 #[path = "io/raw_gltf.rs"]
 mod raw_gltf;
+#[path = "io/rigs.rs"]
+mod rigs;
 #[path = "io/usd_export.rs"]
 mod usd_export;
 
