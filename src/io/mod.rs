@@ -19,6 +19,7 @@ pub mod gltf_mesh;
 pub mod inspect;
 pub mod joint_map;
 pub mod joint_names;
+mod joint_tables;
 pub mod obj;
 pub mod retarget;
 pub mod scene_loader;
