@@ -186,14 +186,14 @@ fn render_verdicts(s: &mut String, checks: &[TrainingCheck]) {
                     mono,
                 );
             }
-        } else if let Some(still) = m.still {
-            if m.still_frames * 10 >= m.frames * 9 {
-                row(
-                    "mean distance on still poses ≤ 2 mm",
-                    format!("{:.1} mm", still.mean_mm),
-                    Some(still.mean_mm <= STILL_DISTANCE_MM),
-                );
-            }
+        } else if let Some(still) = m.still
+            && m.still_frames * 10 >= m.frames * 9
+        {
+            row(
+                "mean distance on still poses ≤ 2 mm",
+                format!("{:.1} mm", still.mean_mm),
+                Some(still.mean_mm <= STILL_DISTANCE_MM),
+            );
         }
         if m.hem.is_none() && m.still_frames < m.frames {
             row(

@@ -84,8 +84,7 @@ fn factors_of(max_steps: Option<u64>, lr_decay: (f64, f64)) -> Vec<f64> {
         std::thread::sleep(Duration::from_millis(1));
     }
     handle.join();
-    let f = factors.lock().unwrap().clone();
-    f
+    factors.lock().unwrap().clone()
 }
 
 #[test]

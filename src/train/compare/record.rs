@@ -64,8 +64,7 @@ impl TrainingCheck {
         let dead_units_pct = history
             .validation
             .iter()
-            .filter(upto)
-            .next_back()
+            .rfind(|r| upto(r))
             .map(|r| r.dead_units_pct);
         let finite = history
             .train
