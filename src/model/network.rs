@@ -565,7 +565,10 @@ mod tests {
         unit.decoder.basis.bias = Some(Param::from_tensor(stored_t.mul_scalar(0.25)));
         let z = Tensor::<3>::ones([1, 2, 12], &device).mul_scalar(0.3);
         let (a, b) = (
-            net.decode(z.clone()).into_data().try_to_vec::<f32>().unwrap(),
+            net.decode(z.clone())
+                .into_data()
+                .try_to_vec::<f32>()
+                .unwrap(),
             unit.decode(z).into_data().try_to_vec::<f32>().unwrap(),
         );
         for (x, y) in a.iter().zip(&b) {
