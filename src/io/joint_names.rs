@@ -10,30 +10,7 @@
 //! joints, then falls back to a generic table for the names it does not know.
 
 /// The canonical joints (Mixamo names), in the order of the built-in mannequin.
-pub const CANONICAL_JOINTS: [&str; 22] = [
-    "Hips",
-    "Spine",
-    "Spine1",
-    "Spine2",
-    "Neck",
-    "Head",
-    "LeftShoulder",
-    "LeftArm",
-    "LeftForeArm",
-    "LeftHand",
-    "RightShoulder",
-    "RightArm",
-    "RightForeArm",
-    "RightHand",
-    "LeftUpLeg",
-    "LeftLeg",
-    "LeftFoot",
-    "LeftToeBase",
-    "RightUpLeg",
-    "RightLeg",
-    "RightFoot",
-    "RightToeBase",
-];
+pub use crate::scene::procedural::body::JOINT_NAMES as CANONICAL_JOINTS;
 
 /// Canonical names every avatar must map when it has them: hips, spine, upper legs, legs,
 /// arms and forearms.
