@@ -10,6 +10,8 @@
 
 #[path = "io/avatars.rs"]
 mod avatars;
+#[path = "io/config_mutation.rs"]
+mod config_mutation;
 #[path = "io/garments.rs"]
 mod garments;
 #[path = "io/motions.rs"]

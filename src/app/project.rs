@@ -226,6 +226,13 @@ impl ProjectFile {
         if !(w.is_finite() && (0.0..=2.0).contains(&w)) {
             return Err(parse(format!("view.w = {w} is outside [0, 2]")));
         }
+        let speed = project.view.playback_speed;
+        if !speed.is_finite() {
+            // The app clamps the speed into its range, and a clamp keeps NaN.
+            return Err(parse(format!(
+                "view.playback_speed = {speed} is not a finite number"
+            )));
+        }
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         project.map_paths(|p| resolve(p, &base));
         Ok(project)
