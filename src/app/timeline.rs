@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use super::NeuralClothApp;
 use super::playback::{MAX_SPEED, MIN_SPEED};
+use super::state::Level;
 
 /// Extension offered for project files.
 pub const PROJECT_EXTENSION: &str = "toml";
@@ -51,6 +52,19 @@ impl NeuralClothApp {
         });
     }
 
+    /// Says what to do when a file dialog gave no file: cancelled, or no desktop dialog on
+    /// this machine (rfd needs a portal), in which case the typed path below is the way.
+    fn no_file_chosen(&mut self, verb: &str) {
+        self.state.message(
+            Level::Warning,
+            format!(
+                "no project file chosen to {verb}: without a desktop file dialog, type the path \
+                 under \"Project path\" in the File menu and press {}",
+                if verb == "open" { "Open" } else { "Save" }
+            ),
+        );
+    }
+
     /// Menu bar: project files, recent files, export, view.
     pub fn menu_ui(&mut self, ui: &mut egui::Ui) {
         egui::MenuBar::new().ui(ui, |ui| {
@@ -59,8 +73,11 @@ impl NeuralClothApp {
                     let picked = rfd::FileDialog::new()
                         .add_filter("neural-cloth project", &[PROJECT_EXTENSION])
                         .pick_file();
-                    if let Some(path) = picked {
-                        self.open_project(&path);
+                    match picked {
+                        Some(path) => {
+                            self.open_project(&path);
+                        }
+                        None => self.no_file_chosen("open"),
                     }
                 }
                 let save_as = |app: &Self| {
@@ -73,14 +90,20 @@ impl NeuralClothApp {
                 };
                 if ui.button("Save project").clicked() {
                     let path = self.state.project_path.clone().or_else(|| save_as(self));
-                    if let Some(path) = path {
-                        self.state.save_project(&path);
+                    match path {
+                        Some(path) => {
+                            self.state.save_project(&path);
+                        }
+                        None => self.no_file_chosen("save"),
                     }
                 }
-                if ui.button("Save project as…").clicked()
-                    && let Some(path) = save_as(self)
-                {
-                    self.state.save_project(&path);
+                if ui.button("Save project as…").clicked() {
+                    match save_as(self) {
+                        Some(path) => {
+                            self.state.save_project(&path);
+                        }
+                        None => self.no_file_chosen("save"),
+                    }
                 }
                 ui.separator();
                 let label = ui.label("Project path:");

@@ -52,3 +52,34 @@ fn the_app_starts_paused_and_the_status_bar_shows_the_frame_time() {
     assert!(shown.starts_with("viewport "), "{shown}");
     assert!(h.query_by_label("viewport idle (paused)").is_none());
 }
+
+#[test]
+fn save_project_without_a_path_or_a_dialog_says_what_to_do() {
+    // No desktop portal in the test: the file dialog gives nothing, as on a bare machine.
+    let mut h = Harness::builder()
+        .with_size(SIZE)
+        .with_pixels_per_point(1.0)
+        .wgpu()
+        .build_eframe(move |cc| {
+            NeuralClothApp::new(&cc.egui_ctx, cc.wgpu_render_state.as_ref(), options(None))
+                .expect("the default scene builds")
+        });
+    h.run();
+    assert!(h.state().state.project_path.is_none());
+    h.get_by_label("File").click();
+    h.run();
+    h.get_by_label("Save project").click();
+    h.run();
+    let said: Vec<String> = h
+        .state()
+        .state
+        .messages
+        .iter()
+        .map(|m| m.text.clone())
+        .collect();
+    assert!(
+        said.iter()
+            .any(|m| m.contains("no project file chosen to save") && m.contains("Project path")),
+        "{said:?}"
+    );
+}
