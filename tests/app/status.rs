@@ -83,3 +83,32 @@ fn save_project_without_a_path_or_a_dialog_says_what_to_do() {
         "{said:?}"
     );
 }
+
+#[test]
+fn a_broken_project_file_is_refused_and_the_settings_stay() {
+    let dir = tempfile::tempdir().unwrap();
+    let broken = dir.path().join("broken.toml");
+    std::fs::write(&broken, "version = 1\n[view]\nplayback_speed = nan\n").unwrap();
+    let mut h = Harness::builder()
+        .with_size(SIZE)
+        .with_pixels_per_point(1.0)
+        .wgpu()
+        .build_eframe(move |cc| {
+            NeuralClothApp::new(&cc.egui_ctx, cc.wgpu_render_state.as_ref(), options(None))
+                .expect("the default scene builds")
+        });
+    h.run();
+    let before = {
+        let s = &h.state().state;
+        (s.fabric.clone(), s.w, s.playback.speed)
+    };
+    assert!(!h.state_mut().open_project(&broken));
+    let s = &h.state().state;
+    let error = s.last_error().unwrap_or_default().to_string();
+    assert!(
+        error.contains("playback_speed") && error.ends_with(&broken.display().to_string()),
+        "{error}"
+    );
+    assert_eq!((s.fabric.clone(), s.w, s.playback.speed), before);
+    assert!(s.playback.speed.is_finite());
+}
