@@ -5,10 +5,13 @@
 //! Update snapshots with `UPDATE_SNAPSHOTS=1 cargo test --release --test app`.
 //!
 //! Layout: this file holds the shared helpers and most tests; the export dialog's tests live in
-//! `app/export_dialog.rs`, start-up and the status bar in `app/status.rs` (one test binary).
+//! `app/export_dialog.rs`, start-up and the status bar in `app/status.rs`, the readable metric
+//! curves in `app/curves.rs` (one test binary).
 //! The memory-leak tests are in `tests/leak.rs`, a binary of their own so that no other test
 //! shares their process's resident memory.
 
+#[path = "app/curves.rs"]
+mod curves;
 #[path = "app/export_dialog.rs"]
 mod export_dialog;
 #[path = "app/status.rs"]

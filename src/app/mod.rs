@@ -11,6 +11,7 @@
 
 pub mod background;
 pub mod cost_panel;
+pub mod curve_math;
 pub mod export;
 pub mod export_dialog;
 pub mod frame_builder;

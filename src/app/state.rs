@@ -116,6 +116,8 @@ pub struct CurveSettings {
     pub shown: [bool; 6],
     /// Also draw validation curves.
     pub validation: bool,
+    /// Plot a metric whose values span more than a decade on a log axis.
+    pub log_scale: bool,
     /// X axis.
     pub x_axis: XAxis,
 }
@@ -125,6 +127,7 @@ impl Default for CurveSettings {
         Self {
             shown: [true, true, true, false, false, false],
             validation: true,
+            log_scale: true,
             x_axis: XAxis::Step,
         }
     }

@@ -11,7 +11,7 @@ use crate::scene::Scene;
 use crate::train::TrainConfig;
 use crate::train::handle::{TrainCommand, TrainEvent, TrainerHandle};
 
-use super::metrics::MetricHistory;
+use super::metrics::{MetricHistory, SettingMarker, applied_marker_name, push_marker};
 
 /// Where the training run is.
 #[derive(Clone, Debug, PartialEq)]
@@ -95,6 +95,8 @@ pub struct TrainingControl {
     pub progress: Progress,
     /// Every metric record of the current or last run.
     pub history: MetricHistory,
+    /// Settings changed during the run (fabric, window, learning rate), for the curves.
+    pub markers: Vec<SettingMarker>,
     /// Latest weight snapshot for the preview, with its step.
     pub latest_weights: Option<(u64, Arc<InferenceWeights>)>,
     /// Run directory of the current or last run.
@@ -132,6 +134,7 @@ impl TrainingControl {
             state: TrainingState::Idle,
             progress: Progress::default(),
             history: MetricHistory::default(),
+            markers: Vec::new(),
             latest_weights: None,
             run_dir: None,
             last_checkpoint: None,
@@ -175,6 +178,7 @@ impl TrainingControl {
         let handle = launcher.launch(request, notify)?;
         self.handle = Some(handle);
         self.history = MetricHistory::default();
+        self.markers.clear();
         self.progress = Progress {
             max_steps,
             ..Default::default()
@@ -233,6 +237,7 @@ impl TrainingControl {
         self.state = TrainingState::Idle;
         self.progress = Progress::default();
         self.history = MetricHistory::default();
+        self.markers.clear();
         self.latest_weights = None;
         self.last_checkpoint = None;
     }
@@ -297,6 +302,13 @@ impl TrainingControl {
                 learning_rate,
             } => {
                 self.history.truncate_after(restored_step);
+                self.markers.retain(|m| m.step <= restored_step);
+                let wall_secs = self.history.train.last().map_or(0.0, |r| r.wall_secs);
+                self.markers.push(SettingMarker {
+                    step: restored_step,
+                    wall_secs,
+                    name: format!("learning rate {learning_rate:.1e}"),
+                });
                 self.note(format!("diverged at step {diverged_at}; back to step {restored_step}, learning rate {learning_rate:.2e}"));
             }
             TrainEvent::Paused => {
@@ -309,7 +321,17 @@ impl TrainingControl {
                     self.state = TrainingState::Running;
                 }
             }
-            TrainEvent::Applied(what) => self.note(format!("applied: {what}")),
+            TrainEvent::Applied(what) => {
+                if let Some(name) = applied_marker_name(&what) {
+                    let marker = SettingMarker {
+                        step: self.progress.step,
+                        wall_secs: self.progress.elapsed_secs,
+                        name,
+                    };
+                    push_marker(&mut self.markers, marker);
+                }
+                self.note(format!("applied: {what}"));
+            }
             TrainEvent::Warning(w) => self.note(format!("⚠ {w}")),
             TrainEvent::Stalled {
                 step,
