@@ -53,17 +53,22 @@ fn the_app_starts_paused_and_the_status_bar_shows_the_frame_time() {
     assert!(h.query_by_label("viewport idle (paused)").is_none());
 }
 
-#[test]
-fn save_project_without_a_path_or_a_dialog_says_what_to_do() {
-    // No desktop portal in the test: the file dialog gives nothing, as on a bare machine.
-    let mut h = Harness::builder()
+/// The app as it opens itself, without a trainer.
+fn app() -> Harness<'static, NeuralClothApp> {
+    Harness::builder()
         .with_size(SIZE)
         .with_pixels_per_point(1.0)
         .wgpu()
         .build_eframe(move |cc| {
             NeuralClothApp::new(&cc.egui_ctx, cc.wgpu_render_state.as_ref(), options(None))
                 .expect("the default scene builds")
-        });
+        })
+}
+
+#[test]
+fn save_project_without_a_path_or_a_dialog_says_what_to_do() {
+    // No desktop portal in the test: the file dialog gives nothing, as on a bare machine.
+    let mut h = app();
     h.run();
     assert!(h.state().state.project_path.is_none());
     h.get_by_label("File").click();
@@ -89,14 +94,7 @@ fn a_broken_project_file_is_refused_and_the_settings_stay() {
     let dir = tempfile::tempdir().unwrap();
     let broken = dir.path().join("broken.toml");
     std::fs::write(&broken, "version = 1\n[view]\nplayback_speed = nan\n").unwrap();
-    let mut h = Harness::builder()
-        .with_size(SIZE)
-        .with_pixels_per_point(1.0)
-        .wgpu()
-        .build_eframe(move |cc| {
-            NeuralClothApp::new(&cc.egui_ctx, cc.wgpu_render_state.as_ref(), options(None))
-                .expect("the default scene builds")
-        });
+    let mut h = app();
     h.run();
     let before = {
         let s = &h.state().state;
