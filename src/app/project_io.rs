@@ -52,7 +52,9 @@ impl AppState {
     }
 
     /// Opens a project: loads its avatar, garment and motions (the built-in scene parts where
-    /// it names none) and applies its settings. Load errors are shown; what loads is kept.
+    /// it names none) and applies its settings. A file that does not read as a project is
+    /// refused before anything changes (the running training and the scene stay); otherwise
+    /// the training is reset first. Load errors are shown; what loads is kept.
     pub fn open_project(
         &mut self,
         path: &Path,
@@ -65,6 +67,7 @@ impl AppState {
                 return false;
             }
         };
+        self.training.reset();
         self.fabric = project.fabric.clone();
         self.fabric_preset = project
             .scene

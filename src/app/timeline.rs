@@ -156,15 +156,9 @@ impl NeuralClothApp {
         });
     }
 
-    /// Opens a project (the built-in scene fills in the parts it does not name). A file that
-    /// does not read as a project is refused before anything changes: the running training
-    /// and the current scene stay.
+    /// Opens a project (the built-in scene fills in the parts it does not name); see
+    /// [`super::state::AppState::open_project`].
     pub fn open_project(&mut self, path: &std::path::Path) -> bool {
-        if let Err(e) = super::project::ProjectFile::open(path) {
-            self.state.message(Level::Error, e.to_string());
-            return false;
-        }
-        self.state.training.reset();
         self.state
             .open_project(path, || super::default_scene().ok())
     }

@@ -111,14 +111,17 @@ pub fn rss_bytes() -> usize {
 }
 
 fn status_kb(key: &str) -> usize {
-    let Ok(status) = std::fs::read_to_string("/proc/self/status") else {
-        return 0;
-    };
+    status_field(key).unwrap_or(0)
+}
+
+/// The number after `key` (e.g. `"VmRSS:"` in kB, `"Threads:"`) in `/proc/self/status`,
+/// `None` where that file or the field is missing (not Linux).
+pub fn status_field(key: &str) -> Option<usize> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
     status
         .lines()
         .find_map(|l| l.strip_prefix(key))
         .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<usize>().ok())
-        .unwrap_or(0)
 }
 
 /// Resets the peak resident set size to the current one (Linux; no-op elsewhere).

@@ -22,7 +22,7 @@ use crate::scene::{Avatar, Garment, Motion};
 
 pub use memory::{
     MemoryBandwidth, floor_buffer, measure_bandwidth, peak_rss_bytes, read_pass_secs,
-    reset_peak_rss, rss_bytes,
+    reset_peak_rss, rss_bytes, status_field,
 };
 pub use suite::{BenchOptions, BenchReport, TrainBench, bench_training, run_suite};
 

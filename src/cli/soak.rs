@@ -163,14 +163,8 @@ pub fn judge(samples: &[Sample], warmup_min: f64) -> Option<Verdict> {
 
 /// Resident memory (MiB), open file descriptors and threads of this process, from /proc.
 fn resources() -> anyhow::Result<(f64, usize, usize)> {
-    let status =
-        std::fs::read_to_string("/proc/self/status").context("reading /proc/self/status")?;
-    let field = |name: &str| -> anyhow::Result<u64> {
-        status
-            .lines()
-            .find_map(|l| l.strip_prefix(name))
-            .and_then(|rest| rest.split_whitespace().next())
-            .and_then(|v| v.parse().ok())
+    let field = |name: &str| {
+        neural_cloth::bench::status_field(name)
             .with_context(|| format!("no {name} in /proc/self/status"))
     };
     let rss_kb = field("VmRSS:")?;
@@ -179,7 +173,7 @@ fn resources() -> anyhow::Result<(f64, usize, usize)> {
     let fds = std::fs::read_dir("/proc/self/fd")
         .context("listing /proc/self/fd")?
         .count();
-    Ok((rss_kb as f64 / 1024.0, fds, threads as usize))
+    Ok((rss_kb as f64 / 1024.0, fds, threads))
 }
 
 /// The main thread's side of the soak: the preview engine, its playback and the bakes.

@@ -1,0 +1,127 @@
+//! Tests of the cloth network: shapes, configuration, the basis bias scale.
+
+use super::*;
+
+fn small() -> ClothNetConfig {
+    ClothNetConfig {
+        static_hidden: vec![8],
+        joint_hidden: vec![4, 4],
+        dynamic_hidden: vec![16],
+        latent: 12,
+        decoder_hidden: vec![10],
+        init_std: 0.3,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn config_validation_and_toml_round_trip() {
+    assert!(ClothNetConfig::default().validate().is_ok());
+    assert!(
+        ClothNetConfig {
+            latent: 0,
+            ..Default::default()
+        }
+        .validate()
+        .is_err()
+    );
+    assert!(
+        ClothNetConfig {
+            init_std: f64::NAN,
+            ..Default::default()
+        }
+        .validate()
+        .is_err()
+    );
+    let c = ClothNetConfig {
+        encoder: EncoderKind::Entangled,
+        ..small()
+    };
+    let back: ClothNetConfig = toml::from_str(&toml::to_string(&c).unwrap()).unwrap();
+    assert_eq!(back, c);
+    assert!(c.init(0, 5, &Device::flex()).is_err());
+}
+
+#[test]
+fn basis_bias_scale_multiplies_the_stored_bias_in_burn_and_in_exported_weights() {
+    use burn::module::Param;
+    use burn::tensor::TensorData;
+    let device = Device::flex();
+    let mut net = ClothNetConfig {
+        basis_bias_lr_scale: 0.25,
+        ..small()
+    }
+    .init(3, 5, &device)
+    .unwrap();
+    let stored: Vec<f32> = (0..15).map(|i| i as f32 * 0.1 - 0.7).collect();
+    let stored_t = Tensor::<1>::from_data(TensorData::new(stored.clone(), [15]), &device);
+    net.decoder.basis.bias = Some(Param::from_tensor(stored_t.clone()));
+    let mut unit = net.clone();
+    unit.decoder.bias_scale = 1.0;
+    unit.decoder.basis.bias = Some(Param::from_tensor(stored_t.mul_scalar(0.25)));
+    let z = Tensor::<3>::ones([1, 2, 12], &device).mul_scalar(0.3);
+    let (a, b) = (
+        net.decode(z.clone())
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap(),
+        unit.decode(z).into_data().try_to_vec::<f32>().unwrap(),
+    );
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x - y).abs() < 1e-6, "{x} vs {y}");
+    }
+    let weights = crate::model::weights::InferenceWeights::from_module(&net).unwrap();
+    let bias = weights.basis.bias.unwrap();
+    for (e, s) in bias.iter().zip(&stored) {
+        assert!((e - 0.25 * s).abs() < 1e-6, "{e} vs {}", 0.25 * s);
+    }
+}
+
+#[test]
+fn dynamic_branch_has_no_bias_and_shapes_hold() {
+    let device = Device::flex();
+    let net = small().init(3, 5, &device).unwrap();
+    assert_eq!(net.kind(), EncoderKind::Disentangled);
+    let dynamic = net.dynamic_encoder.as_ref().unwrap();
+    assert!(
+        dynamic
+            .joint_mlp
+            .layers
+            .iter()
+            .chain(&dynamic.mlp.layers)
+            .all(|l| l.bias.is_none())
+    );
+    assert!(dynamic.gru.update_gate.input_transform.bias.is_none());
+    assert!(net.decoder.basis.bias.is_some());
+    assert!(
+        net.static_encoder
+            .as_ref()
+            .unwrap()
+            .layers
+            .iter()
+            .all(|l| l.bias.is_some())
+    );
+    let s = Tensor::<4>::ones([2, 4, 3, STATIC_DIM], &device);
+    let d = Tensor::<4>::ones([2, 4, 3, DYNAMIC_DIM], &device);
+    assert_eq!(
+        net.forward(s.clone(), Some(d.clone()), 1.0).dims(),
+        [2, 4, 5, 3]
+    );
+    assert_eq!(net.forward_last(s, Some(d), 1.0, 3).dims(), [2, 3, 5, 3]);
+    let st = ClothNetConfig {
+        encoder: EncoderKind::StaticOnly,
+        ..small()
+    }
+    .init(3, 5, &device)
+    .unwrap();
+    assert!(!st.has_dynamic_branch());
+    let en = ClothNetConfig {
+        encoder: EncoderKind::Entangled,
+        ..small()
+    }
+    .init(3, 5, &device)
+    .unwrap();
+    assert!(en.static_encoder.is_none());
+    let s = Tensor::<4>::ones([1, 2, 3, STATIC_DIM], &device);
+    assert_eq!(en.forward(s, None, 1.0).dims(), [1, 2, 5, 3]);
+}
