@@ -114,11 +114,21 @@ impl FrameSource for SimulatorSource<'_> {
             )),
             false => None,
         };
-        let pin_targets = (!self.garment.pinned.is_empty())
+        let quasi_static = !self.stepper.terms().effects().dynamics;
+        let skinned = (quasi_static || !self.garment.pinned.is_empty())
             .then(|| self.garment.pose_vertices(self.avatar, pose));
+        let pin_targets = if self.garment.pinned.is_empty() {
+            None
+        } else {
+            skinned.clone()
+        };
         let (x, _) = self
             .stepper
-            .step(&StepInput { body, pin_targets })
+            .step(&StepInput {
+                body,
+                pin_targets,
+                skinned: if quasi_static { skinned } else { None },
+            })
             .map_err(|e| BakeError::Source(e.to_string()))?;
         self.positions = x;
         self.pose = Some(pose.clone());

@@ -197,6 +197,8 @@ fn step_inputs(scene: &Scene, poses: &[Pose]) -> Result<(Vec<StepInput>, f64), R
         inputs.push(StepInput {
             body,
             pin_targets: pin.then(|| scene.garment.pose_vertices(&scene.avatar, pose)),
+            skinned: (!scene.effects.dynamics)
+                .then(|| scene.garment.pose_vertices(&scene.avatar, pose)),
         });
     }
     Ok((

@@ -236,9 +236,12 @@ fn reference_spin(
         };
         let pins = (scene.effects.pinning && !scene.garment.pinned.is_empty())
             .then(|| scene.garment.pose_vertices(&scene.avatar, pose));
+        let skinned =
+            (!scene.effects.dynamics).then(|| scene.garment.pose_vertices(&scene.avatar, pose));
         Ok(StepInput {
             body,
             pin_targets: pins,
+            skinned,
         })
     };
     let settle = input(first)?;

@@ -248,6 +248,7 @@ impl Scenario {
             let input = StepInput {
                 body: Some(Arc::new(body)),
                 pin_targets: Some(mesh.positions.iter().map(place).collect()),
+                ..Default::default()
             };
             let (x, report) = stepper
                 .step(&input)
@@ -390,4 +391,93 @@ fn reference_simulator_survives_fast_motions_time_steps_and_scales() {
             s.spawn(move || case.run());
         }
     });
+}
+
+/// Azimuth about +Y of `p` relative to `centre`, radians.
+fn azimuth(p: &Vec3, centre: &Vec3) -> f32 {
+    (p.z - centre.z).atan2(p.x - centre.x)
+}
+
+/// Regression (issue 11, the unpinned dress on the spin): a quasi-static step started from
+/// the previous frame's positions, so a frictionless garment on a turning body stayed where it
+/// was while the body turned under it (the t-shirt's quasi-static reference "swung" 212 mm)
+/// and a fast turn passed the body through it (the dress fell through the shoulders). Given
+/// the skinned template, the step now starts from the previous solution carried along by the
+/// template's displacement, and the garment turns with the body.
+#[test]
+fn quasi_static_garment_rides_along_with_a_turning_body() {
+    let fabric = FabricParams::default();
+    let effects = neural_cloth::physics::Effects {
+        dynamics: false,
+        pinning: false,
+        ..all_effects()
+    };
+    let centre = Vec3::new(0.0, 1.0, 0.0);
+    let radius = 0.25;
+    let body0 = uv_sphere(centre, radius, 10, 16);
+    let size = 0.3;
+    // A small sheet resting on the pole, off-centre so that its corner has a clear azimuth.
+    let mesh = sheet(
+        6,
+        6,
+        centre + Vec3::new(-0.05, radius + 0.004, -0.05),
+        Vec3::x() * size,
+        Vec3::z() * size,
+    );
+    let corner = mesh.positions.len() - 1;
+    let rest = rest_of(&mesh, &[], &[], &fabric);
+    let options = SimOptions {
+        iterations_per_step: 20,
+        ..SimOptions::default()
+    };
+    let step_rad = 0.35f32;
+    let steps = 6;
+    let run = |carry: bool| -> (f32, f32) {
+        let device = Device::flex();
+        let mut stepper = Stepper::new(
+            rest.clone(),
+            &fabric,
+            &effects,
+            &mesh.positions,
+            1.0 / 30.0,
+            &options,
+            &device,
+        )
+        .unwrap();
+        let mut last = mesh.positions.clone();
+        let mut template_corner = mesh.positions[corner];
+        for k in 0..=steps {
+            let rot = Quat::from_axis_angle(&Vec3::y_axis(), step_rad * k as f32);
+            let place = |p: &Vec3| centre + rot * (p - centre);
+            let body =
+                PosedBody::new(body0.positions.iter().map(place).collect(), &body0.faces).unwrap();
+            let skinned: Vec<Vec3> = mesh.positions.iter().map(place).collect();
+            template_corner = skinned[corner];
+            let input = StepInput {
+                body: Some(Arc::new(body)),
+                skinned: carry.then_some(skinned),
+                ..Default::default()
+            };
+            last = stepper.step(&input).unwrap().0;
+            assert!(last.iter().all(|p| p.iter().all(|c| c.is_finite())));
+        }
+        (
+            azimuth(&last[corner], &centre),
+            azimuth(&template_corner, &centre),
+        )
+    };
+    let wrap = |a: f32| {
+        (a + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI
+    };
+    let (carried, template) = run(true);
+    assert!(
+        wrap(carried - template).abs() < 0.1,
+        "carried along, the corner's azimuth {carried} should follow the body's {template}"
+    );
+    // Without the template the sheet is left behind: the failure this test pins.
+    let (left, template) = run(false);
+    assert!(
+        wrap(left - template).abs() > 1.0,
+        "without the template the corner ({left}) was expected to lag the body ({template})"
+    );
 }

@@ -107,14 +107,22 @@ pub struct FrameReport {
     pub kinetic_j: f64,
 }
 
-/// Inputs of one step: the posed body (when collision is on) and pinning targets (all
-/// vertices; only pinned rows are used).
+/// Inputs of one step: the posed body (when collision is on), pinning targets (all
+/// vertices; only pinned rows are used) and the skinned template that carries a quasi-static
+/// solve along with the body.
 #[derive(Clone, Debug, Default)]
 pub struct StepInput {
     /// Body at the end of the step.
     pub body: Option<Arc<PosedBody>>,
     /// Pinning targets at the end of the step.
     pub pin_targets: Option<Vec<Vec3>>,
+    /// The garment template skinned to the pose at the end of the step. Without dynamics a
+    /// step starts from the previous solution moved by the template's displacement since the
+    /// previous step (where both steps had one), so the garment rides along with the body
+    /// instead of being left behind where the body moved through it: a frictionless garment
+    /// on a turning body otherwise lags, and fast turns pass the body through it (the dress
+    /// on the spin, docs/TRAINING.md). Ignored with dynamics, whose inertia carries it.
+    pub skinned: Option<Vec<Vec3>>,
 }
 
 /// Advances one garment step by step (batch of one) on an autodiff device.
@@ -131,6 +139,8 @@ pub struct Stepper {
     contact_range_m: f64,
     x_t1: Vec<f64>,
     x_t2: Vec<f64>,
+    /// The skinned template of the previous step, flattened (see [`StepInput::skinned`]).
+    skinned_t1: Option<Vec<f64>>,
     dt_secs: f32,
     options: SimOptions,
     force_scale: f64,
@@ -201,10 +211,7 @@ impl Stepper {
             0.0
         };
         let g = f64::from(fabric.gravity().norm()).max(1.0);
-        let x0: Vec<f64> = initial
-            .iter()
-            .flat_map(|p| [f64::from(p.x), f64::from(p.y), f64::from(p.z)])
-            .collect();
+        let x0 = flatten(initial);
         let terms = PhysicsTerms::from_rest(rest.clone(), fabric, effects, &device, dtype)?;
         Ok(Self {
             metric,
@@ -214,6 +221,7 @@ impl Stepper {
                 + options.max_step_edges * rest.mean_edge_m,
             x_t1: x0.clone(),
             x_t2: x0,
+            skinned_t1: None,
             dt_secs,
             force_scale: (mean_mass * g).max(1e-30),
             max_step_m: options.max_step_edges * rest.mean_edge_m.max(1e-6),
@@ -251,15 +259,27 @@ impl Stepper {
             (Some(t), true) => Some(positions_tensor(&[t.as_slice()], &device, dtype)?),
             _ => None,
         };
-        let mut x: Vec<f64> = if effects.dynamics {
-            self.x_t1
+        let skinned = input
+            .skinned
+            .as_deref()
+            .map(flatten)
+            .filter(|s| s.len() == 3 * v);
+        let mut x: Vec<f64> = match (effects.dynamics, &skinned, &self.skinned_t1) {
+            (true, _, _) => self
+                .x_t1
                 .iter()
                 .zip(&self.x_t2)
                 .map(|(a, b)| 2.0 * a - b)
-                .collect()
-        } else {
-            self.x_t1.clone()
+                .collect(),
+            (false, Some(now), Some(before)) => self
+                .x_t1
+                .iter()
+                .zip(now.iter().zip(before))
+                .map(|(x, (n, b))| x + (n - b))
+                .collect(),
+            (false, _, _) => self.x_t1.clone(),
         };
+        self.skinned_t1 = skinned;
         let mut report = FrameReport::default();
         let mut spent = 0;
         let lbfgs_opts = LbfgsOptions {
@@ -422,6 +442,14 @@ impl Stepper {
             .ok_or_else(|| PhysicsError::Backend("no gradient for positions".into()))?;
         Ok((value, pot, read_f64(g)?))
     }
+}
+
+/// `[x0, y0, z0, x1, ...]` in `f64`.
+fn flatten(points: &[Vec3]) -> Vec<f64> {
+    points
+        .iter()
+        .flat_map(|p| [f64::from(p.x), f64::from(p.y), f64::from(p.z)])
+        .collect()
 }
 
 fn to_vec3(x: &[f64]) -> Vec<Vec3> {

@@ -78,9 +78,14 @@ pub fn simulate(
         } else {
             None
         };
-        let pin_targets = (effects.pinning && !garment.pinned.is_empty())
-            .then(|| garment.pose_vertices(avatar, &pose));
-        Ok(StepInput { body, pin_targets })
+        let pinned = effects.pinning && !garment.pinned.is_empty();
+        let skinned = (pinned || !effects.dynamics).then(|| garment.pose_vertices(avatar, &pose));
+        let pin_targets = if pinned { skinned.clone() } else { None };
+        Ok(StepInput {
+            body,
+            pin_targets,
+            skinned: (!effects.dynamics).then_some(skinned).flatten(),
+        })
     };
     for _ in 0..settle_steps {
         stepper.step(&input_at(0.0)?)?;

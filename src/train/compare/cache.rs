@@ -28,8 +28,9 @@ use super::super::trained::TrainedModel;
 use super::super::{BackendKind, TrainError, device_for};
 use super::{CompareOptions, ComparePhase};
 
-/// Format version of the cached files (part of the key).
-const CACHE_VERSION: &str = "neural-cloth reference v1";
+/// Format version of the cached files (part of the key). v2: quasi-static solves ride along
+/// with the body ([`crate::physics::simulator::StepInput::skinned`]).
+const CACHE_VERSION: &str = "neural-cloth reference v2";
 
 /// L-BFGS tolerance of the reference (as the report's accuracy experiment: effectively none,
 /// so every frame spends its iteration budget).
