@@ -435,6 +435,39 @@ fn every_motion_is_finite_at_any_rate() {
 }
 
 #[test]
+fn a_spin_at_half_speed_turns_once_a_second_and_bad_speeds_are_refused() {
+    let peak_rate = |m: &neural_cloth::scene::Motion| {
+        m.frames
+            .windows(2)
+            .map(|w| angle_between(&w[0].rotations[0], &w[1].rotations[0]) * m.fps)
+            .fold(0.0f32, f32::max)
+    };
+    let slow = procedural::motion_at_speed(MotionKind::Spin, 240.0, 6.0, 0.5).unwrap();
+    let full = procedural::motion(MotionKind::Spin, 240.0, 6.0).unwrap();
+    assert_eq!(slow.frames.len(), full.frames.len());
+    let target = 2.0 * std::f32::consts::PI;
+    assert!(
+        (0.95 * target..=1.05 * target).contains(&peak_rate(&slow)),
+        "{} rad/s",
+        peak_rate(&slow)
+    );
+    for bad in [0.0, -1.0, f32::NAN, 11.0] {
+        assert!(procedural::motion_at_speed(MotionKind::Walk, 30.0, 1.0, bad).is_err());
+    }
+    // The scene file knows the field; a built-in motion's speed outside (0, 10] is refused.
+    let scene = |speed: &str| {
+        format!(
+            "name = \"s\"\n[avatar]\nbuiltin = \"mannequin\"\n[garment]\nbuiltin = \"tshirt\"\n[[motions]]\nbuiltin = \"spin\"\nspeed = {speed}\n"
+        )
+    };
+    let ok: neural_cloth::scene::SceneConfig = toml::from_str(&scene("0.5")).unwrap();
+    assert!(ok.validate().is_ok());
+    let bad: neural_cloth::scene::SceneConfig = toml::from_str(&scene("20.0")).unwrap();
+    let err = bad.validate().unwrap_err().to_string();
+    assert!(err.contains("motions[0].speed"), "{err}");
+}
+
+#[test]
 fn spin_reaches_four_pi_and_jump_accelerates() {
     let spin = procedural::motion(MotionKind::Spin, 240.0, 6.0).unwrap();
     let peak = spin

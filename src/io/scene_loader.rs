@@ -114,6 +114,7 @@ pub fn load_scene(
             MotionSource::Builtin {
                 builtin,
                 duration_secs,
+                speed,
                 fps: motion_fps,
                 split,
                 name,
@@ -128,6 +129,7 @@ pub fn load_scene(
                     *builtin,
                     motion_fps.unwrap_or(fps),
                     *duration_secs,
+                    *speed,
                     name.as_deref(),
                 )
                 .map_err(|e| IoError::Scene {

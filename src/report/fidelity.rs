@@ -160,6 +160,7 @@ pub fn fidelity_scene(
     let m = |builtin, duration_secs, split| MotionSource::Builtin {
         builtin,
         duration_secs,
+        speed: 1.0,
         fps: None,
         split,
         name: None,

@@ -191,6 +191,7 @@ impl SceneConfig {
                     MotionKind::Jump => 5.4,
                     _ => 6.0,
                 },
+                speed: 1.0,
                 fps: None,
                 split: kind.default_split(),
                 name: None,
@@ -300,10 +301,18 @@ impl SceneConfig {
                 MotionSource::Builtin {
                     builtin,
                     duration_secs,
+                    speed,
                     fps,
                     name,
                     ..
                 } => {
+                    let max = crate::scene::procedural::motions::MAX_SPEED;
+                    if !(speed.is_finite() && *speed > 0.0 && *speed <= max) {
+                        return Err(invalid(
+                            format!("motions[{k}].speed"),
+                            format!("{speed} is outside (0, {max}]"),
+                        ));
+                    }
                     if !(duration_secs.is_finite()
                         && *duration_secs > 0.0
                         && *duration_secs <= 3600.0)

@@ -96,12 +96,14 @@ pub enum GarmentSource {
 #[serde(try_from = "RawSource", into = "RawSource")]
 pub enum MotionSource {
     /// A procedural motion: `builtin = "idle" | "walk" | "run" | "jump" | "turn" | "spin"`,
-    /// optional `duration_secs`, `fps`, `split`, `name` (needs the mannequin).
+    /// optional `duration_secs`, `speed`, `fps`, `split`, `name` (needs the mannequin).
     Builtin {
         /// Which one.
         builtin: MotionKind,
         /// Length in seconds, (0, 3600], default 6.
         duration_secs: f32,
+        /// Playback speed factor, (0, 10], default 1 (0.5: the spin turns once a second).
+        speed: f32,
         /// Sampling rate in frames per second, [1, 1000]; default: the scene's `training_fps`.
         fps: Option<f32>,
         /// Data split, default "train".
@@ -144,6 +146,8 @@ struct RawSource {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     duration_secs: Option<f32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    speed: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     fps: Option<f32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     split: Option<Split>,
@@ -172,6 +176,7 @@ impl RawSource {
             ("resolution", self.resolution.is_some()),
             ("smoothing_passes", self.smoothing_passes.is_some()),
             ("duration_secs", self.duration_secs.is_some()),
+            ("speed", self.speed.is_some()),
             ("fps", self.fps.is_some()),
             ("split", self.split.is_some()),
             ("name", self.name.is_some()),
@@ -304,7 +309,7 @@ impl TryFrom<RawSource> for MotionSource {
                 raw.check(
                     "motion",
                     expected,
-                    &["duration_secs", "fps", "split", "name"],
+                    &["duration_secs", "speed", "fps", "split", "name"],
                 )?;
                 let builtin =
                     MotionKind::from_name(&b).ok_or_else(|| unknown("motion", &b, expected))?;
@@ -312,6 +317,7 @@ impl TryFrom<RawSource> for MotionSource {
                 Ok(Self::Builtin {
                     builtin,
                     duration_secs,
+                    speed: raw.speed.unwrap_or(1.0),
                     fps: raw.fps,
                     split,
                     name: raw.name,
@@ -337,12 +343,14 @@ impl From<MotionSource> for RawSource {
             MotionSource::Builtin {
                 builtin,
                 duration_secs,
+                speed,
                 fps,
                 split,
                 name,
             } => Self {
                 builtin: Some(builtin.name().into()),
                 duration_secs: Some(duration_secs),
+                speed: (speed != 1.0).then_some(speed),
                 fps,
                 split: Some(split),
                 name,

@@ -17,7 +17,7 @@ pub mod surface;
 
 pub use garments::GarmentKind;
 pub use mannequin::mannequin;
-pub use motions::{MotionKind, motion};
+pub use motions::{MotionKind, motion, motion_at_speed};
 
 use super::config::{AvatarSource, ConfigError, GarmentSource, MotionSource, SceneConfig, Split};
 use super::{Avatar, Garment, GarmentOptions, Motion, Scene, SceneError};
@@ -39,9 +39,10 @@ pub fn builtin_motion(
     kind: MotionKind,
     fps: f32,
     duration_secs: f32,
+    speed: f32,
     name: Option<&str>,
 ) -> Result<Motion, SceneError> {
-    let mut m = motion(kind, fps, duration_secs)?;
+    let mut m = motions::motion_at_speed(kind, fps, duration_secs, speed)?;
     if let Some(name) = name {
         m.name = name.to_string();
     }
@@ -87,6 +88,7 @@ pub fn build_builtin(config: &SceneConfig) -> Result<Scene, ConfigError> {
         let MotionSource::Builtin {
             builtin,
             duration_secs,
+            speed,
             fps,
             split,
             name,
@@ -99,7 +101,7 @@ pub fn build_builtin(config: &SceneConfig) -> Result<Scene, ConfigError> {
         specs.push((
             *builtin,
             fps.unwrap_or(config.training_fps),
-            *duration_secs,
+            (*duration_secs, *speed),
             *split,
             name.clone(),
         ));
@@ -108,8 +110,9 @@ pub fn build_builtin(config: &SceneConfig) -> Result<Scene, ConfigError> {
     let garment = builtin_garment(&avatar, *builtin, *resolution, *smoothing_passes)?;
     let motions: Vec<(Motion, Split)> = specs
         .into_iter()
-        .map(|(kind, fps, duration, split, name)| {
-            Ok((builtin_motion(kind, fps, duration, name.as_deref())?, split))
+        .map(|(kind, fps, (duration, speed), split, name)| {
+            let motion = builtin_motion(kind, fps, duration, speed, name.as_deref())?;
+            Ok((motion, split))
         })
         .collect::<Result<_, SceneError>>()?;
     Ok(config.assemble(avatar, garment, motions)?)

@@ -76,6 +76,9 @@ impl MotionKind {
     }
 }
 
+/// Largest playback speed factor of a built-in motion.
+pub const MAX_SPEED: f32 = 10.0;
+
 /// Root angular speed of the spin at full speed, rad/s.
 pub const SPIN_RAD_PER_SEC: f32 = 4.0 * PI;
 /// Ease-in/out time of walk, run and spin, seconds.
@@ -395,6 +398,18 @@ pub fn pose_at(kind: MotionKind, t_secs: f32, duration_secs: f32) -> Pose {
 /// Samples motion `kind` at `fps` frames per second (0 < fps <= 10000) for `duration_secs`
 /// seconds (0..=3600); the motion is named after the kind.
 pub fn motion(kind: MotionKind, fps: f32, duration_secs: f32) -> Result<Motion, SceneError> {
+    motion_at_speed(kind, fps, duration_secs, 1.0)
+}
+
+/// Like [`motion`], played `speed` times as fast (0 < speed <= 10): the take of
+/// `duration_secs · speed` seconds, time-scaled to last `duration_secs` (a spin at speed 0.5
+/// turns once a second, easing in and out over 1.2 s).
+pub fn motion_at_speed(
+    kind: MotionKind,
+    fps: f32,
+    duration_secs: f32,
+    speed: f32,
+) -> Result<Motion, SceneError> {
     let invalid = |reason: String| SceneError::InvalidMotion {
         name: kind.name().into(),
         reason,
@@ -409,9 +424,14 @@ pub fn motion(kind: MotionKind, fps: f32, duration_secs: f32) -> Result<Motion, 
             "duration {duration_secs} s is outside 0..=3600 s"
         )));
     }
+    if !(speed.is_finite() && speed > 0.0 && speed <= MAX_SPEED) {
+        return Err(invalid(format!(
+            "speed {speed} is outside (0, {MAX_SPEED}]"
+        )));
+    }
     let frames = (duration_secs * fps + 1e-3).floor() as usize + 1;
     let poses = (0..frames)
-        .map(|k| pose_at(kind, k as f32 / fps, duration_secs))
+        .map(|k| pose_at(kind, speed * k as f32 / fps, speed * duration_secs))
         .collect();
     Motion::new(kind.name(), fps, poses, JOINT_COUNT)
 }
