@@ -4,7 +4,8 @@
 //! for bad input, and a mutation test (random byte flips, truncations and splices) asserting
 //! that no importer panics. The USD export is read back by Pixar's usd-core and checked with
 //! its validators (`io/usd_export.rs`). Retargeting across rig naming conventions, rest poses,
-//! glTF rigs and joint maps, on fixtures written by our own code (`io/rigs.rs`).
+//! glTF rigs and joint maps, on fixtures written by our own code (`io/rigs.rs`). Characters
+//! built partly of rigid meshes parented to bones (`io/rigid_parts.rs`).
 //!
 //! Layout: this file holds the shared helpers; the tests live in `io/*.rs` (one test binary).
 
@@ -20,6 +21,8 @@ mod motions;
 mod mutation;
 #[path = "io/raw_gltf.rs"]
 mod raw_gltf;
+#[path = "io/rigid_parts.rs"]
+mod rigid_parts;
 #[path = "io/rigs.rs"]
 mod rigs;
 #[path = "io/usd_export.rs"]

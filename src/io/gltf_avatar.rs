@@ -1,5 +1,6 @@
 //! Skinned glTF 2.0 / GLB avatars: skeleton from the skin joints, merged bind mesh with skin
-//! weights, animations resampled into motions, units converted to metres.
+//! weights (skinned meshes and rigid parts parented to joints, see `gltf_body`), animations
+//! resampled into motions, units converted to metres.
 //!
 //! Several skins sharing joints become one skeleton. Joints are ordered so that parents come
 //! first; non-joint nodes between two joints become (unweighted) joints so local rotations stay
@@ -9,9 +10,10 @@
 use std::collections::HashMap;
 use std::path::Path;
 
+use super::gltf_body::{BindMesh, merge_body};
 use super::gltf_doc::GltfDoc;
 use super::{ImportOptions, IoError, LoadedAvatar, Units, check_fps, file_stem, read_bytes};
-use crate::geometry::{Mat4, SkinWeights, TriMesh, Vec3, linear_blend_skin};
+use crate::geometry::{Mat4, linear_blend_skin};
 use crate::scene::{Avatar, Skeleton};
 
 /// Loads a skinned avatar from a `.glb` or `.gltf` file.
@@ -30,7 +32,7 @@ pub fn load_avatar_from_bytes(
     let doc = GltfDoc::parse(bytes, path)?;
     let mut warnings = Vec::new();
     let rig = build_rig(&doc, &mut warnings)?;
-    let BindMesh { mesh, skin } = merge_skinned_meshes(&doc, &rig, &mut warnings)?;
+    let (BindMesh { mesh, skin }, meshes) = merge_body(&doc, &rig, &mut warnings)?;
     let mut skeleton = rig.skeleton;
     let scene_err = |source| IoError::Scene {
         source,
@@ -74,6 +76,7 @@ pub fn load_avatar_from_bytes(
         avatar,
         units,
         warnings,
+        meshes,
     })
 }
 
@@ -307,14 +310,6 @@ pub(crate) fn build_rig(doc: &GltfDoc, warnings: &mut Vec<String>) -> Result<Rig
     })
 }
 
-/// The merged bind-space mesh of all skinned mesh nodes with its skin weights.
-pub(crate) struct BindMesh {
-    /// Bind-space mesh (file units).
-    pub mesh: TriMesh,
-    /// Weights into the unified skeleton.
-    pub skin: SkinWeights,
-}
-
 /// Triangles of a primitive given its vertex count and mode; `None` for non-triangle modes.
 pub(crate) fn primitive_triangles(
     doc: &GltfDoc,
@@ -354,147 +349,6 @@ pub(crate) fn primitive_triangles(
         _ => return Ok(None),
     };
     Ok(Some(tris))
-}
-
-/// Merges all triangle primitives of all skinned mesh nodes into one bind-space mesh.
-pub(crate) fn merge_skinned_meshes(
-    doc: &GltfDoc,
-    rig: &Rig,
-    warnings: &mut Vec<String>,
-) -> Result<BindMesh, IoError> {
-    let mut positions: Vec<Vec3> = Vec::new();
-    let mut faces: Vec<[u32; 3]> = Vec::new();
-    let mut uvs: Vec<[f32; 2]> = Vec::new();
-    let mut all_have_uvs = true;
-    let mut influences: Vec<Vec<(u16, f32)>> = Vec::new();
-    let (mut skipped, mut morphs) = (0usize, false);
-    for node in doc.doc.nodes() {
-        let (Some(mesh), Some(skin)) = (node.mesh(), node.skin()) else {
-            continue;
-        };
-        let Some(info) = rig.skins.iter().find(|s| s.index == skin.index()) else {
-            continue;
-        };
-        for prim in mesh.primitives() {
-            let what = format!("mesh {} primitive {}", mesh.index(), prim.index());
-            morphs |= prim.morph_targets().next().is_some();
-            let Some(pos_acc) = prim.get(&gltf::Semantic::Positions) else {
-                return Err(doc.invalid(format!("{what} has no POSITION")));
-            };
-            let pos = doc.read_f32(&pos_acc, 3, &format!("{what} POSITION"))?;
-            let n = pos.len() / 3;
-            let Some(tris) = primitive_triangles(doc, &prim, n, &what)? else {
-                skipped += 1;
-                continue;
-            };
-            let base = positions.len();
-            if base + n > u32::MAX as usize {
-                return Err(doc.invalid("too many vertices"));
-            }
-            positions.extend(pos.chunks_exact(3).map(|c| {
-                info.bind_fix
-                    .transform_point(&nalgebra::Point3::new(c[0], c[1], c[2]))
-                    .coords
-            }));
-            faces.extend(tris.iter().map(|t| t.map(|i| i + base as u32)));
-            match prim.get(&gltf::Semantic::TexCoords(0)) {
-                Some(acc) => {
-                    let uv = doc.read_f32(&acc, 2, &format!("{what} TEXCOORD_0"))?;
-                    if uv.len() / 2 != n {
-                        return Err(count_mismatch(doc, &what, "TEXCOORD_0", n, uv.len() / 2));
-                    }
-                    uvs.extend(uv.chunks_exact(2).map(|c| [c[0], c[1]]));
-                }
-                None => all_have_uvs = false,
-            }
-            let mut lists: Vec<Vec<(u16, f32)>> = vec![Vec::new(); n];
-            for set in 0..2u32 {
-                let (Some(ja), Some(wa)) = (
-                    prim.get(&gltf::Semantic::Joints(set)),
-                    prim.get(&gltf::Semantic::Weights(set)),
-                ) else {
-                    if set == 0 {
-                        return Err(doc.invalid(format!(
-                            "{what} of a skinned mesh has no JOINTS_0/WEIGHTS_0"
-                        )));
-                    }
-                    continue;
-                };
-                let joints = doc.read_u32(&ja, 4, &format!("{what} JOINTS_{set}"))?;
-                let weights = doc.read_f32(&wa, 4, &format!("{what} WEIGHTS_{set}"))?;
-                if joints.len() / 4 != n || weights.len() / 4 != n {
-                    return Err(count_mismatch(
-                        doc,
-                        &what,
-                        &format!("JOINTS_{set}/WEIGHTS_{set}"),
-                        n,
-                        (joints.len() / 4).min(weights.len() / 4),
-                    ));
-                }
-                for (v, list) in lists.iter_mut().enumerate() {
-                    for k in 0..4 {
-                        let (j, w) = (joints[v * 4 + k] as usize, weights[v * 4 + k]);
-                        if w == 0.0 {
-                            continue;
-                        }
-                        let Some(&sj) = info.joint_map.get(j) else {
-                            return Err(IoError::JointCountMismatch {
-                                what: format!(
-                                    "{what} JOINTS_{set} refers to joint {j} of skin {}, joints in the skin",
-                                    info.index
-                                ),
-                                expected: info.joint_map.len(),
-                                found: j + 1,
-                                path: doc.path.clone(),
-                            });
-                        };
-                        list.push((sj as u16, w));
-                    }
-                }
-            }
-            influences.extend(lists);
-        }
-    }
-    if skipped > 0 {
-        warnings.push(format!(
-            "{skipped} non-triangle primitives (points/lines) ignored"
-        ));
-    }
-    if morphs {
-        warnings.push("morph targets present but ignored".into());
-    }
-    if faces.is_empty() {
-        return Err(IoError::NoMesh {
-            path: doc.path.clone(),
-        });
-    }
-    let (skin, fallbacks) = SkinWeights::from_influences(influences, 0);
-    if fallbacks > 0 {
-        warnings.push(format!(
-            "{fallbacks} vertices had no usable skin weight and were bound to the root joint"
-        ));
-    }
-    if !all_have_uvs && !uvs.is_empty() {
-        warnings.push("some primitives have no TEXCOORD_0; UVs dropped".into());
-    }
-    let uvs = (all_have_uvs && uvs.len() == positions.len()).then_some(uvs);
-    let mesh = TriMesh {
-        positions,
-        faces,
-        uvs,
-    };
-    mesh.validate()
-        .map_err(|e| doc.invalid(format!("bind mesh: {e}")))?;
-    Ok(BindMesh { mesh, skin })
-}
-
-fn count_mismatch(doc: &GltfDoc, what: &str, attr: &str, expected: usize, found: usize) -> IoError {
-    IoError::JointCountMismatch {
-        what: format!("{what} {attr} (one per vertex)"),
-        expected,
-        found,
-        path: doc.path.clone(),
-    }
 }
 
 /// Warns about non-root joints that sit exactly on their parent (zero-length bones).

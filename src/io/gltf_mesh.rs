@@ -1,5 +1,6 @@
 //! glTF/GLB meshes as garment templates: every triangle primitive of every mesh node of the
 //! default scene, placed by its node's world transform, merged into one [`TriMesh`] in metres.
+//! Mesh nodes outside that scene, and meshes no node places, are left out with a warning.
 
 use std::path::Path;
 
@@ -43,6 +44,7 @@ pub fn load_gltf_mesh_from_bytes(
         None => (0..doc.parents.len()).collect(),
     };
     let nodes: Vec<gltf::Node> = doc.doc.nodes().collect();
+    warn_unplaced_meshes(&nodes, &scene_nodes, &doc, &mut warnings);
     let mut positions: Vec<Vec3> = Vec::new();
     let mut faces: Vec<[u32; 3]> = Vec::new();
     let mut uvs: Vec<[f32; 2]> = Vec::new();
@@ -143,4 +145,47 @@ pub fn load_gltf_mesh_from_bytes(
         units,
         warnings,
     })
+}
+
+/// Warns about meshes the garment leaves out: mesh nodes outside the scene, meshes no node
+/// places.
+fn warn_unplaced_meshes(
+    nodes: &[gltf::Node],
+    scene_nodes: &[usize],
+    doc: &GltfDoc,
+    warnings: &mut Vec<String>,
+) {
+    let name = |name: Option<&str>, what: &str, index: usize| {
+        name.filter(|s| !s.trim().is_empty())
+            .map_or_else(|| format!("{what} {index}"), str::to_string)
+    };
+    let outside: Vec<String> = nodes
+        .iter()
+        .filter(|n| n.mesh().is_some() && scene_nodes.binary_search(&n.index()).is_err())
+        .map(|n| name(n.name(), "node", n.index()))
+        .collect();
+    let unplaced: Vec<String> = doc
+        .doc
+        .meshes()
+        .filter(|m| {
+            !nodes
+                .iter()
+                .any(|n| n.mesh().is_some_and(|nm| nm.index() == m.index()))
+        })
+        .map(|m| name(m.name(), "mesh", m.index()))
+        .collect();
+    for (list, what, why) in [
+        (outside, "mesh node", "outside the default scene"),
+        (unplaced, "mesh", "no node places it"),
+    ] {
+        if !list.is_empty() {
+            let refs: Vec<&str> = list.iter().map(String::as_str).collect();
+            warnings.push(format!(
+                "{} {what}{} ignored ({why}): {}",
+                list.len(),
+                if list.len() == 1 { "" } else { "s" },
+                super::gltf_avatar::short_list(&refs, 8)
+            ));
+        }
+    }
 }

@@ -1,12 +1,13 @@
 //! A human-readable report on any supported file (glb, gltf, obj, bvh): joints as a short
-//! tree, vertices and faces, animations with frame counts and durations, units, warnings.
+//! tree, vertices and faces, every mesh of an avatar and how it was used (skinned, rigid part
+//! of a joint, ignored and why), animations with frame counts and durations, units, warnings.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 use super::joint_map::{JointMap, map_joints};
 use super::joint_names::classify;
-use super::{ImportOptions, IoError, LoadedMesh, Units};
+use super::{ImportOptions, IoError, LoadedMesh, MeshUsage, MeshUse, Units};
 use crate::geometry::TriMesh;
 
 /// Most lines of the joint tree shown before it is cut short.
@@ -30,6 +31,7 @@ pub fn inspect(path: &Path) -> Result<String, IoError> {
                 let _ = writeln!(out, "height: {:.3} m", a.height_m());
                 joint_tree(&mut out, &a.skeleton.names, &a.skeleton.parents);
                 mesh_lines(&mut out, "body", &a.bind_mesh);
+                mesh_uses(&mut out, &loaded.meshes);
                 let _ = writeln!(out, "animations: {}", a.motions.len());
                 for m in &a.motions {
                     let _ = writeln!(
@@ -199,6 +201,23 @@ fn mesh_lines(out: &mut String, what: &str, mesh: &TriMesh) {
         mesh.faces.len(),
         if mesh.uvs.is_some() { "yes" } else { "no" }
     );
+}
+
+/// Writes `meshes: N (...)` and one line per mesh of an avatar file: skinned, rigid part of a
+/// joint, or ignored and why.
+fn mesh_uses(out: &mut String, meshes: &[MeshUse]) {
+    let count = |f: fn(&MeshUsage) -> bool| meshes.iter().filter(|m| f(&m.usage)).count();
+    let _ = writeln!(
+        out,
+        "meshes: {} ({} skinned, {} rigid parts, {} ignored)",
+        meshes.len(),
+        count(|u| matches!(u, MeshUsage::Skinned)),
+        count(|u| matches!(u, MeshUsage::Rigid { .. })),
+        count(|u| matches!(u, MeshUsage::Ignored { .. })),
+    );
+    for m in meshes {
+        let _ = writeln!(out, "  {m}");
+    }
 }
 
 fn warnings(out: &mut String, warnings: &[String]) {

@@ -14,6 +14,7 @@ pub mod export;
 mod gltf_accessor;
 mod gltf_anim;
 pub mod gltf_avatar;
+mod gltf_body;
 mod gltf_doc;
 pub mod gltf_mesh;
 pub mod inspect;
@@ -27,6 +28,7 @@ pub mod units;
 
 pub use bvh::{Bvh, BvhChannel, BvhJoint, load_bvh};
 pub use gltf_avatar::{load_avatar, load_avatar_from_bytes};
+pub use gltf_body::{MeshUsage, MeshUse};
 pub use gltf_mesh::{load_gltf_mesh, load_gltf_mesh_from_bytes};
 pub use inspect::inspect;
 pub use joint_map::{JointMap, JointMapping, map_joints};
@@ -77,8 +79,12 @@ pub struct LoadedAvatar {
     pub avatar: crate::scene::Avatar,
     /// The unit the file was read in (never `Auto`).
     pub units: Units,
-    /// Non-fatal problems (ignored channels, morph targets, zero-length bones, ...).
+    /// Non-fatal problems (ignored channels, morph targets, zero-length bones, meshes left
+    /// out of the body, ...).
     pub warnings: Vec<String>,
+    /// Every mesh of the file and what became of it: skinned body part, rigid part of a joint,
+    /// or ignored (and why).
+    pub meshes: Vec<MeshUse>,
 }
 
 /// Errors of the I/O layer. The offending file's path always comes last in the message.

@@ -1,5 +1,6 @@
 //! `train --resume` trains on the scene the run recorded and refuses a different `--scene`;
-//! a new run never overwrites an existing one; headless GPU use prints no display errors.
+//! a new run never overwrites an existing one; headless GPU use (training on the GPU backend,
+//! `screenshot`) prints no display errors.
 
 use std::path::Path;
 use std::process::Command;
@@ -127,5 +128,28 @@ fn gpu_training_without_a_desktop_session_prints_no_display_error() {
     assert!(!log.contains("XDG_RUNTIME_DIR"), "{log}");
     if !out.status.success() {
         eprintln!("no GPU adapter here: the run stopped early: {log}");
+    }
+}
+
+/// `screenshot` renders offscreen through Vulkan (lavapipe here): without a desktop session it
+/// prints nothing about the missing display either.
+#[test]
+fn screenshot_without_a_desktop_session_prints_no_display_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_neural-cloth"))
+        .args(["screenshot", "--width", "64", "--height", "48"])
+        .args(["--out", "shot.png"])
+        .current_dir(dir.path())
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("NODEVICE_SELECT")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&out.stderr);
+    assert!(!log.contains("XDG_RUNTIME_DIR"), "{log}");
+    if out.status.success() {
+        assert!(dir.path().join("shot.png").is_file());
+    } else {
+        eprintln!("no GPU adapter here: the screenshot stopped early: {log}");
     }
 }
