@@ -42,6 +42,25 @@ pub struct DescriptorConfig {
     pub gravity_dir: [f32; 3],
 }
 
+/// Root mean square of each dynamic channel over every frame and joint of `sets`, floored at
+/// `1e-3` so that a channel that never moves divides by little (the dynamic encoder's input
+/// scale, [`crate::model::ClothNetConfig::dynamic_input_scale`]).
+pub fn dynamic_channel_rms(sets: &[&Descriptors]) -> Vec<f32> {
+    let mut sum = [0.0f64; DYNAMIC_DIM];
+    let mut count = 0usize;
+    for d in sets {
+        for row in d.dynamic_desc.chunks_exact(DYNAMIC_DIM) {
+            for (s, v) in sum.iter_mut().zip(row) {
+                *s += f64::from(*v) * f64::from(*v);
+            }
+            count += 1;
+        }
+    }
+    sum.iter()
+        .map(|s| ((s / count.max(1) as f64).sqrt() as f32).max(1e-3))
+        .collect()
+}
+
 impl Default for DescriptorConfig {
     fn default() -> Self {
         let patterns = [
@@ -430,6 +449,26 @@ impl DescriptorExtractor {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn dynamic_channel_rms_is_per_channel_over_every_set_and_floored() {
+        let set = |rows: &[[f32; DYNAMIC_DIM]]| Descriptors {
+            frames: rows.len(),
+            joints: 1,
+            static_desc: vec![0.0; rows.len() * STATIC_DIM],
+            dynamic_desc: rows.iter().flatten().copied().collect(),
+        };
+        let mut a = [0.0f32; DYNAMIC_DIM];
+        a[0] = 3.0;
+        a[11] = -30.0;
+        let mut b = [0.0f32; DYNAMIC_DIM];
+        b[0] = -4.0;
+        let rms = dynamic_channel_rms(&[&set(&[a]), &set(&[b])]);
+        assert_eq!(rms.len(), DYNAMIC_DIM);
+        assert!((rms[0] - (12.5f32).sqrt()).abs() < 1e-5, "{}", rms[0]);
+        assert!((rms[11] - (450.0f32).sqrt()).abs() < 1e-4, "{}", rms[11]);
+        assert_eq!(rms[5], 1e-3, "a channel that never moves is floored");
+    }
     use crate::geometry::Quat;
     use crate::scene::JointTransform;
 

@@ -21,6 +21,7 @@ pub mod weights;
 
 pub use descriptors::{
     DYNAMIC_DIM, DescriptorConfig, DescriptorExtractor, DescriptorStream, Descriptors, STATIC_DIM,
+    dynamic_channel_rms,
 };
 pub use inference::{InferenceEngine, InferenceOptions};
 pub use kernels::Precision;

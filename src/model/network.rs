@@ -88,6 +88,20 @@ pub struct ClothNetConfig {
     /// whatever its gradient, a noise that smears the warm-start folds.
     #[serde(default = "unit_scale")]
     pub basis_bias_lr_scale: f64,
+    /// Divisors of the 12 dynamic descriptor channels (shared by all joints) applied before
+    /// the dynamic encoder, or empty for none (runs saved before it existed read empty). A new
+    /// training run with [`ClothNetConfig::normalise_dynamic_input`] sets each to the
+    /// channel's RMS over its training motions: unscaled, a spin's rotation rates (rad/s) and
+    /// accelerations (m/s²) reach tens and drive the GRU's gates into saturation, where the
+    /// dynamic code stops answering the motion (docs/TRAINING.md, round 3). Exported weights
+    /// fold it into the first per-joint layer, so inference takes raw descriptors. Each
+    /// finite and > 0.
+    #[serde(default)]
+    pub dynamic_input_scale: Vec<f32>,
+    /// Set [`ClothNetConfig::dynamic_input_scale`] from the training motions when a run
+    /// starts; default true (runs saved before it existed read false).
+    #[serde(default)]
+    pub normalise_dynamic_input: bool,
 }
 
 fn unit_scale() -> f64 {
@@ -114,6 +128,8 @@ impl Default for ClothNetConfig {
             basis_lr_scale: DEFAULT_BASIS_LR_SCALE,
             basis_bias: true,
             basis_bias_lr_scale: DEFAULT_BASIS_BIAS_LR_SCALE,
+            dynamic_input_scale: Vec::new(),
+            normalise_dynamic_input: true,
         }
     }
 }
@@ -165,6 +181,14 @@ impl ClothNetConfig {
                 self.basis_bias_lr_scale
             )));
         }
+        let scale = &self.dynamic_input_scale;
+        if !scale.is_empty()
+            && (scale.len() != DYNAMIC_DIM || scale.iter().any(|s| !(s.is_finite() && *s > 0.0)))
+        {
+            return Err(ModelError::InvalidConfig(format!(
+                "dynamic_input_scale {scale:?} is not {DYNAMIC_DIM} positive values"
+            )));
+        }
         if !(self.basis_init_gain.is_finite() && self.basis_init_gain >= 0.0) {
             return Err(ModelError::InvalidConfig(format!(
                 "basis_init_gain {} is negative",
@@ -200,7 +224,7 @@ impl ClothNetConfig {
             }
             Mlp { layers }
         };
-        let recurrent = |joint_in: usize, bias: bool| -> RecurrentEncoder {
+        let recurrent = |joint_in: usize, bias: bool, scale: &[f32]| -> RecurrentEncoder {
             let joint_mlp = mlp(joint_in, &self.joint_hidden, bias);
             let joint_out = self.joint_hidden.last().copied().unwrap_or(joint_in);
             let mlp = mlp(input_joints * joint_out, &self.dynamic_hidden, bias);
@@ -213,6 +237,7 @@ impl ClothNetConfig {
                 joint_mlp,
                 mlp,
                 gru: GruConfig::new(gru_in, self.latent, bias).init(device),
+                input_inv_scale: scale.iter().map(|s| 1.0 / s).collect(),
             }
         };
         let mut static_widths = self.static_hidden.clone();
@@ -220,7 +245,7 @@ impl ClothNetConfig {
         let (static_encoder, dynamic_encoder, entangled_encoder) = match self.encoder {
             EncoderKind::Disentangled => (
                 Some(mlp(input_joints * STATIC_DIM, &static_widths, true)),
-                Some(recurrent(DYNAMIC_DIM, false)),
+                Some(recurrent(DYNAMIC_DIM, false, &self.dynamic_input_scale)),
                 None,
             ),
             EncoderKind::StaticOnly => (
@@ -228,7 +253,11 @@ impl ClothNetConfig {
                 None,
                 None,
             ),
-            EncoderKind::Entangled => (None, None, Some(recurrent(STATIC_DIM + DYNAMIC_DIM, true))),
+            EncoderKind::Entangled => (
+                None,
+                None,
+                Some(recurrent(STATIC_DIM + DYNAMIC_DIM, true, &[])),
+            ),
         };
         let decoder_mlp = mlp(self.latent, &self.decoder_hidden, true);
         let basis_in = self.decoder_hidden.last().copied().unwrap_or(self.latent);
@@ -304,12 +333,23 @@ pub struct RecurrentEncoder {
     pub mlp: Mlp,
     /// The recurrent unit (burn's GRU, `reset_after = true`).
     pub gru: Gru,
+    /// Factors applied to each descriptor channel before the per-joint layers
+    /// (`1 / ClothNetConfig::dynamic_input_scale`); empty for none. Not a parameter: it
+    /// comes from the config the network is built from.
+    #[module(skip)]
+    pub input_inv_scale: Vec<f32>,
 }
 
 impl RecurrentEncoder {
     /// `[B, T, J, C]` descriptors -> `[B, T, latent]` codes, from `state` (`[B, latent]`) or zero.
     pub fn forward(&self, desc: Tensor<4>, state: Option<Tensor<2>>) -> Tensor<3> {
-        let [b, t, _, _] = desc.dims();
+        let [b, t, _, c] = desc.dims();
+        let desc = if self.input_inv_scale.len() == c {
+            let factors = Tensor::<1>::from_floats(self.input_inv_scale.as_slice(), &desc.device());
+            desc * factors.reshape([1, 1, 1, c])
+        } else {
+            desc
+        };
         let x = self.joint_mlp.forward(desc);
         let [_, _, j, c] = x.dims();
         let x = self.mlp.forward(x.reshape([b, t, j * c]));

@@ -125,3 +125,70 @@ fn dynamic_branch_has_no_bias_and_shapes_hold() {
     let s = Tensor::<4>::ones([1, 2, 3, STATIC_DIM], &device);
     assert_eq!(en.forward(s, None, 1.0).dims(), [1, 2, 5, 3]);
 }
+
+#[test]
+fn dynamic_input_scale_divides_the_descriptors_and_folds_into_exported_weights() {
+    let device = Device::flex();
+    let scale: Vec<f32> = (0..DYNAMIC_DIM).map(|c| 0.5 + c as f32).collect();
+    let scaled = ClothNetConfig {
+        dynamic_input_scale: scale.clone(),
+        ..small()
+    }
+    .init(3, 5, &device)
+    .unwrap();
+    // The same weights without a scale, fed descriptors divided by hand.
+    let mut plain = scaled.clone();
+    plain.dynamic_encoder.as_mut().unwrap().input_inv_scale = Vec::new();
+    let s = Tensor::<4>::ones([1, 4, 3, STATIC_DIM], &device).mul_scalar(0.2);
+    let raw: Vec<f32> = (0..4 * 3 * DYNAMIC_DIM)
+        .map(|i| ((i * 7919) % 23) as f32 - 11.0)
+        .collect();
+    let divided: Vec<f32> = raw
+        .iter()
+        .enumerate()
+        .map(|(i, v)| v / scale[i % DYNAMIC_DIM])
+        .collect();
+    let tensor = |v: Vec<f32>| {
+        Tensor::<4>::from_data(
+            burn::tensor::TensorData::new(v, [1, 4, 3, DYNAMIC_DIM]),
+            &device,
+        )
+    };
+    let read = |t: Tensor<4>| t.into_data().try_to_vec::<f32>().unwrap();
+    let a = read(scaled.forward(s.clone(), Some(tensor(raw.clone())), 1.0));
+    let b = read(plain.forward(s.clone(), Some(tensor(divided)), 1.0));
+    let moved = read(plain.forward(s, Some(tensor(raw)), 1.0));
+    assert!(a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-5));
+    assert!(
+        a.iter().zip(&moved).any(|(x, y)| (x - y).abs() > 1e-4),
+        "the scale must change the output of the same raw descriptors"
+    );
+    // Exported weights take raw descriptors: the first per-joint layer carries 1/s per row.
+    let (ws, wp) = (
+        crate::model::weights::InferenceWeights::from_module(&scaled).unwrap(),
+        crate::model::weights::InferenceWeights::from_module(&plain).unwrap(),
+    );
+    let (first_s, first_p) = (
+        &ws.recurrent.as_ref().unwrap().joint_layers[0],
+        &wp.recurrent.as_ref().unwrap().joint_layers[0],
+    );
+    for (r, (rs, rp)) in first_s
+        .weight
+        .chunks_exact(first_s.d_out)
+        .zip(first_p.weight.chunks_exact(first_p.d_out))
+        .enumerate()
+    {
+        for (x, y) in rs.iter().zip(rp) {
+            assert!(
+                (x - y / scale[r]).abs() < 1e-6,
+                "row {r}: {x} vs {}",
+                y / scale[r]
+            );
+        }
+    }
+    let bad = ClothNetConfig {
+        dynamic_input_scale: vec![1.0; 5],
+        ..small()
+    };
+    assert!(bad.validate().is_err());
+}

@@ -287,9 +287,20 @@ pub struct RecurrentWeights {
 }
 
 impl RecurrentWeights {
+    /// The encoder's weights with its input scale folded into the first per-joint layer
+    /// (`W' = diag(1/s) W`), so the plain matrices take unscaled descriptors.
     fn from_encoder(enc: &RecurrentEncoder, what: &str) -> Result<Self, ModelError> {
+        let mut joint_layers = dense_layers(&enc.joint_mlp, &format!("{what} joint"))?;
+        let factors = &enc.input_inv_scale;
+        if let Some(first) = joint_layers.first_mut()
+            && factors.len() == first.d_in
+        {
+            for (row, f) in first.weight.chunks_exact_mut(first.d_out).zip(factors) {
+                row.iter_mut().for_each(|w| *w *= f);
+            }
+        }
         Ok(Self {
-            joint_layers: dense_layers(&enc.joint_mlp, &format!("{what} joint"))?,
+            joint_layers,
             layers: dense_layers(&enc.mlp, what)?,
             gru: GruWeights::from_gru(&enc.gru, &format!("{what} GRU"))?,
         })

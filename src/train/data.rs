@@ -67,6 +67,25 @@ pub struct Batch {
     pub windows: Vec<(usize, usize)>,
 }
 
+/// Per-channel RMS of the dynamic descriptors of the train-split `motions` at `fps` (the
+/// [`crate::model::ClothNetConfig::dynamic_input_scale`] of a new run).
+pub fn dynamic_scale_of(
+    avatar: &Avatar,
+    motions: &[(Motion, Split)],
+    fps: f32,
+    descriptor_config: &DescriptorConfig,
+) -> Result<Vec<f32>, TrainError> {
+    let mut extractor = DescriptorExtractor::new(&avatar.skeleton, descriptor_config, fps)?;
+    let sets = motions
+        .iter()
+        .filter(|(_, split)| *split == Split::Train)
+        .map(|(motion, _)| extractor.motion(motion))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(crate::model::dynamic_channel_rms(
+        &sets.iter().collect::<Vec<_>>(),
+    ))
+}
+
 impl Dataset {
     /// Prepares `motions` of `split` (plus left/right mirrors when `mirror`) at `fps`.
     pub fn new(

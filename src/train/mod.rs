@@ -176,10 +176,20 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
     train.validate()?;
     let Settings {
         resumed,
-        model,
+        mut model,
         descriptors,
         fabric,
     } = settings(&scene, &location, model, descriptors, fabric)?;
+    // A new run scales the dynamic encoder's input to order one (see
+    // `ClothNetConfig::dynamic_input_scale`); a resumed run keeps what it recorded.
+    if resumed.is_none()
+        && model.encoder == EncoderKind::Disentangled
+        && model.normalise_dynamic_input
+        && model.dynamic_input_scale.is_empty()
+    {
+        model.dynamic_input_scale =
+            data::dynamic_scale_of(&scene.avatar, &scene.motions, train.fps, &descriptors)?;
+    }
     let device = device_for(train.backend, true);
     device.seed(train.seed);
     let avatar = Arc::new(scene.avatar);
