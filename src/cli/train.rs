@@ -109,6 +109,10 @@ pub struct TrainArgs {
     /// Fraction of each batch made of still windows (default 0.25; 0 = the paper's batches).
     #[arg(long)]
     pub still_fraction: Option<f32>,
+    /// Fraction of each batch given another sample's dynamic code, trained with the static
+    /// losses only (the paper's motion augmentation), 0..=0.9 (default 0.2)
+    #[arg(long)]
+    pub augmentation: Option<f32>,
     /// Dead units (percent of a layer) that trigger the revive remedy (default 75).
     #[arg(long)]
     pub dead_limit: Option<f64>,
@@ -344,6 +348,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if args.static_from_still {
         train.static_from_still = true;
+    }
+    if let Some(f) = args.augmentation {
+        train.augmentation_fraction = f;
     }
     if let Some(f) = args.still_fraction {
         train.still_fraction = f;
