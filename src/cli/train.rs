@@ -109,6 +109,10 @@ pub struct TrainArgs {
     /// Fraction of each batch made of still windows (default 0.25; 0 = the paper's batches).
     #[arg(long)]
     pub still_fraction: Option<f32>,
+    /// Scale each dynamic descriptor channel by its RMS over the training motions (off by
+    /// default: measured harmful, see docs/TRAINING.md)
+    #[arg(long)]
+    pub scale_dynamic_input: bool,
     /// Fraction of each batch given another sample's dynamic code, trained with the static
     /// losses only (the paper's motion augmentation), 0..=0.9 (default 0.2)
     #[arg(long)]
@@ -343,6 +347,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         train.predrape_secs = p;
     }
     model.basis_bias = !args.no_basis_bias;
+    model.normalise_dynamic_input = args.scale_dynamic_input;
     if args.no_centre_init {
         train.centre_init = false;
     }

@@ -89,17 +89,17 @@ pub struct ClothNetConfig {
     #[serde(default = "unit_scale")]
     pub basis_bias_lr_scale: f64,
     /// Divisors of the 12 dynamic descriptor channels (shared by all joints) applied before
-    /// the dynamic encoder, or empty for none (runs saved before it existed read empty). A new
-    /// training run with [`ClothNetConfig::normalise_dynamic_input`] sets each to the
-    /// channel's RMS over its training motions: unscaled, a spin's rotation rates (rad/s) and
-    /// accelerations (m/s²) reach tens and drive the GRU's gates into saturation, where the
-    /// dynamic code stops answering the motion (docs/TRAINING.md, round 3). Exported weights
-    /// fold it into the first per-joint layer, so inference takes raw descriptors. Each
-    /// finite and > 0.
+    /// the dynamic encoder, or empty for none (the default). A new training run with
+    /// [`ClothNetConfig::normalise_dynamic_input`] sets each to the channel's RMS over its
+    /// training motions. Exported weights fold it into the first per-joint layer, so
+    /// inference takes raw descriptors. Each finite and > 0. Measured harmful with the
+    /// official initialisation (docs/TRAINING.md, round 3): inputs of order one make the
+    /// initial dynamic code about twenty times smaller, and the skirt's dynamic branch then
+    /// never wakes up (swing 0 against 52 mm unscaled).
     #[serde(default)]
     pub dynamic_input_scale: Vec<f32>,
     /// Set [`ClothNetConfig::dynamic_input_scale`] from the training motions when a run
-    /// starts; default true (runs saved before it existed read false).
+    /// starts; default false (see there why).
     #[serde(default)]
     pub normalise_dynamic_input: bool,
 }
@@ -129,7 +129,7 @@ impl Default for ClothNetConfig {
             basis_bias: true,
             basis_bias_lr_scale: DEFAULT_BASIS_BIAS_LR_SCALE,
             dynamic_input_scale: Vec::new(),
-            normalise_dynamic_input: true,
+            normalise_dynamic_input: false,
         }
     }
 }
