@@ -2,11 +2,12 @@
 //! Cloth Simulation", ACM TOG 2022) as a desktop authoring tool.
 //!
 //! Layers, each depending only on those above it in this list: [`geometry`], [`scene`],
-//! [`io`], `physics`, `model`, `train`, `render`, `app`.
+//! [`io`], `physics`, [`fit`], `model`, `train`, `render`, `app`.
 
 pub mod app;
 pub mod bake;
 pub mod bench;
+pub mod fit;
 pub mod geometry;
 pub mod io;
 pub mod model;

@@ -4,7 +4,8 @@
 //! for bad input, and a mutation test (random byte flips, truncations and splices) asserting
 //! that no importer panics. The USD export is read back by Pixar's usd-core and checked with
 //! its validators (`io/usd_export.rs`). Retargeting across rig naming conventions, rest poses,
-//! glTF rigs and joint maps, on fixtures written by our own code (`io/rigs.rs`). Characters
+//! glTF rigs and joint maps, on fixtures written by our own code (`io/rigs.rs`). Garment
+//! fitting on built-in and MakeHuman garments, and the `fit` command (`io/fit.rs`). Characters
 //! built partly of rigid meshes parented to bones (`io/rigid_parts.rs`).
 //!
 //! Layout: this file holds the shared helpers; the tests live in `io/*.rs` (one test binary).
@@ -13,6 +14,8 @@
 mod avatars;
 #[path = "io/config_mutation.rs"]
 mod config_mutation;
+#[path = "io/fit.rs"]
+mod fit;
 #[path = "io/garments.rs"]
 mod garments;
 #[path = "io/motions.rs"]

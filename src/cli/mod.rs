@@ -5,6 +5,7 @@ mod app_launcher;
 mod bake;
 mod bench;
 mod compare;
+mod fit;
 pub mod headless;
 mod inspect;
 mod report;
@@ -44,6 +45,9 @@ pub enum Command {
         #[arg(long)]
         joint_map: Option<PathBuf>,
     },
+    /// Fit a garment made for another body, in other units or placed elsewhere onto the
+    /// avatar's rest pose, relaxed by the simulator; writes an OBJ to train on.
+    Fit(fit::FitArgs),
     /// Train a model on a scene headless (default: the built-in scene).
     Train(Box<train::TrainArgs>),
     /// Print the §4.2 metrics of a trained model on its scene's test split.
@@ -89,6 +93,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             avatar,
             joint_map,
         }) => inspect::run(&file, avatar.as_deref(), joint_map.as_deref()),
+        Some(Command::Fit(args)) => fit::run(args),
         Some(Command::Train(args)) => train::run(*args),
         Some(Command::Eval(args)) => train::eval(args),
         Some(Command::Bake(args)) => bake::run(args),

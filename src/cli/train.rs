@@ -23,7 +23,8 @@ pub struct TrainArgs {
     /// Garment file (OBJ/glTF) replacing the scene's garment; needs --avatar.
     #[arg(long, requires = "avatar")]
     pub garment: Option<PathBuf>,
-    /// Skinned avatar (glTF/GLB) replacing the scene's avatar; needs --garment.
+    /// Skinned avatar (glTF/GLB, or `mannequin` for the built-in one) replacing the scene's
+    /// avatar; needs --garment.
     #[arg(long, requires = "garment")]
     pub avatar: Option<PathBuf>,
     /// Folder of BVH (or glTF) motions. Files sorted by name; of each ten the 9th is a test
@@ -117,6 +118,11 @@ pub struct TrainArgs {
     /// losses only (the paper's motion augmentation), 0..=0.9 (default 0.2)
     #[arg(long)]
     pub augmentation: Option<f32>,
+    /// Train on a garment file even when it clearly does not fit the avatar (vertices inside
+    /// the body, far from it, another size); without it such a garment is refused with the
+    /// `neural-cloth fit` command that fixes it.
+    #[arg(long)]
+    pub skip_fit_check: bool,
     /// Dead units (percent of a layer) that trigger the revive remedy (default 75).
     #[arg(long)]
     pub dead_limit: Option<f64>,
@@ -174,9 +180,15 @@ fn scene_config_from_args(
     };
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
     if let (Some(a), Some(g)) = (avatar, garment) {
-        config.avatar = AvatarSource::File {
-            path: abs(a),
-            units: None,
+        config.avatar = if a == Path::new("mannequin") && !a.exists() {
+            AvatarSource::Builtin {
+                builtin: neural_cloth::scene::config::BuiltinAvatar::Mannequin,
+            }
+        } else {
+            AvatarSource::File {
+                path: abs(a),
+                units: None,
+            }
         };
         config.garment = GarmentSource::File {
             path: abs(g),
@@ -368,6 +380,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(d) = args.dead_limit {
         train.dead_limit_pct = d;
+    }
+    if args.skip_fit_check {
+        train.fit_check = false;
     }
     model.validate()?;
     // A resumed run goes on to the limits it recorded unless new ones are given.

@@ -94,6 +94,10 @@ pub struct TrainConfig {
     /// A validation pass with at least this percentage of dead units in one revivable layer
     /// (decoder, static hidden layers) triggers the stall remedy (revive the dead units); 1..=100, default 75.
     pub dead_limit_pct: f64,
+    /// Refuse a garment file that clearly does not fit the avatar (many vertices inside the
+    /// body, far outside it, or a size or place that fitting would change a lot; see
+    /// [`super::preflight::fit_refusal`]); built-in garments are not checked. Default true.
+    pub fit_check: bool,
 }
 
 impl Default for TrainConfig {
@@ -121,6 +125,7 @@ impl Default for TrainConfig {
             lr_decay_fraction: 0.0,
             lr_final_factor: 0.1,
             fused_physics: true,
+            fit_check: true,
         }
     }
 }

@@ -68,6 +68,12 @@ pub enum TrainError {
     /// The data cannot be trained on.
     #[error("training data: {0}")]
     Data(String),
+    /// The garment file does not fit the avatar (the message says what to do).
+    #[error("{0}")]
+    GarmentFit(String),
+    /// Checking the garment's fit failed.
+    #[error(transparent)]
+    Fit(#[from] crate::fit::FitError),
     /// A checkpoint or run directory is unusable.
     #[error("checkpoint: {0}")]
     Checkpoint(String),
@@ -204,6 +210,9 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
     // A resumed run that never wrote a checkpoint starts over, initialised like a new one.
     let has_checkpoint =
         resume && (!run.checkpoint_steps().is_empty() || run.latest_json_step().is_some());
+    if !resume && train.fit_check {
+        refuse_misfit(&avatar, &garment, &scene_config)?;
+    }
     warnings.extend(preflight::preflight_warnings(&avatar, &garment, &fabric));
     let mut net = model.init(train_data.input_joints, garment.vertex_count(), &device)?;
     if !has_checkpoint && train.predrape_secs > 0.0 && model.basis_bias {
@@ -261,6 +270,27 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
     };
     let loop_config = loop_config(&train, run_root, start_step, history, warnings);
     Ok((session, loop_config))
+}
+
+/// Refuses a garment file that clearly does not fit the avatar ([`preflight::fit_refusal`]);
+/// built-in garments pass.
+fn refuse_misfit(
+    avatar: &crate::scene::Avatar,
+    garment: &crate::scene::Garment,
+    scene_config: &SceneConfig,
+) -> Result<(), TrainError> {
+    use crate::scene::config::{AvatarSource, GarmentSource};
+    let GarmentSource::File { path, .. } = &scene_config.garment else {
+        return Ok(());
+    };
+    let avatar_file = match &scene_config.avatar {
+        AvatarSource::File { path, .. } => Some(path.as_path()),
+        AvatarSource::Builtin { .. } => None,
+    };
+    match preflight::fit_refusal(avatar, avatar_file, garment, path)? {
+        Some(why) => Err(TrainError::GarmentFit(why)),
+        None => Ok(()),
+    }
 }
 
 /// The model, descriptor and fabric settings of a run: for a resumed run the ones it recorded

@@ -8,7 +8,15 @@
 //!   less than its inverse) make the loss one term's alone: with stretch 1e4 the garment cannot
 //!   move without a strain cost that dwarfs gravity, the gradient of every other term is lost
 //!   in it, and Adam's steps only add noise to the template.
+//!
+//! A garment file that clearly does not fit the avatar (issue 13: many vertices inside the
+//! body, far outside its bounding box, or a size or place that fitting would change a lot;
+//! [`crate::fit::check`]) is refused by [`fit_refusal`], with what to do: run `neural-cloth
+//! fit`, or train anyway with `--skip-fit-check`.
 
+use std::path::Path;
+
+use crate::fit::{FitError, FitLimits, check_fit};
 use crate::geometry::KdTree;
 use crate::physics::FabricParams;
 use crate::scene::{Avatar, Garment};
@@ -81,6 +89,40 @@ pub fn preflight_warnings(
     out
 }
 
+/// Why training refuses the garment from `garment_file` on `avatar` (the avatar's file, or
+/// `None` for the built-in mannequin), saying what to do; `None` when it fits. The message
+/// ends with the garment file.
+pub fn fit_refusal(
+    avatar: &Avatar,
+    avatar_file: Option<&Path>,
+    garment: &Garment,
+    garment_file: &Path,
+) -> Result<Option<String>, FitError> {
+    let limits = FitLimits::default();
+    let problems = check_fit(avatar, &garment.mesh, &limits)?.problems(&limits);
+    if problems.is_empty() {
+        return Ok(None);
+    }
+    let stem = garment_file
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "garment".into());
+    let fitted = garment_file.with_file_name(format!("{stem}-fitted.obj"));
+    Ok(Some(format!(
+        "the garment '{}' does not fit avatar '{}': {}. Fit it first: `neural-cloth fit \
+         --avatar {} --garment {} --out {}`, then train on {}; or train on it as it is with \
+         `train --skip-fit-check`: {}",
+        garment.name,
+        avatar.name,
+        problems.join("; "),
+        avatar_file.map_or_else(|| "mannequin".into(), |p| p.display().to_string()),
+        garment_file.display(),
+        fitted.display(),
+        fitted.display(),
+        garment_file.display()
+    )))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -121,5 +163,31 @@ mod tests {
         let w = preflight_warnings(&s.avatar, &s.garment, &fabric);
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(w[0].contains("from the body"), "{w:?}");
+    }
+
+    #[test]
+    fn a_garment_below_the_body_is_refused_with_what_to_do_and_a_builtin_one_is_not() {
+        let mut s = scene();
+        let file = Path::new("/shirts/shirt.obj");
+        assert_eq!(
+            fit_refusal(&s.avatar, None, &s.garment, file).unwrap(),
+            None
+        );
+        s.garment
+            .mesh
+            .positions
+            .iter_mut()
+            .for_each(|p| *p -= Vec3::new(0.0, 0.6, 0.0));
+        let why = fit_refusal(&s.avatar, None, &s.garment, file)
+            .unwrap()
+            .unwrap();
+        for needle in [
+            "neural-cloth fit --avatar mannequin --garment /shirts/shirt.obj",
+            "--skip-fit-check",
+            "away from where fitting would put it",
+        ] {
+            assert!(why.contains(needle), "no '{needle}' in {why}");
+        }
+        assert!(why.ends_with("/shirts/shirt.obj"), "{why}");
     }
 }
