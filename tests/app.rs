@@ -6,7 +6,7 @@
 //!
 //! Layout: this file holds the shared helpers and most tests; the export dialog's tests live in
 //! `app/export_dialog.rs`, start-up and the status bar in `app/status.rs`, the readable metric
-//! curves in `app/curves.rs` (one test binary).
+//! curves in `app/curves.rs`, "Fit garment" in `app/fit.rs` (one test binary).
 //! The memory-leak tests are in `tests/leak.rs`, a binary of their own so that no other test
 //! shares their process's resident memory.
 
@@ -14,6 +14,8 @@
 mod curves;
 #[path = "app/export_dialog.rs"]
 mod export_dialog;
+#[path = "app/fit.rs"]
+mod fit;
 #[path = "app/status.rs"]
 mod status;
 

@@ -14,6 +14,7 @@ pub mod cost_panel;
 pub mod curve_math;
 pub mod export;
 pub mod export_dialog;
+pub mod fit_panel;
 pub mod frame_builder;
 pub mod loading;
 pub mod metrics;
@@ -65,6 +66,8 @@ pub struct NeuralClothApp {
     pub show_curves: bool,
     /// The accuracy/time experiment of the Cost panel.
     pub cost: cost_panel::CostPanel,
+    /// "Fit garment" running on its own thread.
+    pub fit: fit_panel::FitPanel,
     /// Exporter behind the export dialog.
     exporter: Option<Arc<dyn export::Exporter>>,
     /// The export running on its own thread.
@@ -97,6 +100,7 @@ impl NeuralClothApp {
             viewport: Viewport::new(render_state),
             show_curves: true,
             cost: cost_panel::CostPanel::default(),
+            fit: fit_panel::FitPanel::default(),
             exporter: options.exporter.map(Arc::from),
             export_job: Default::default(),
             framed_revision: 0,

@@ -111,6 +111,7 @@ impl NeuralClothApp {
                 ));
                 self.load_row(ui, LoadKind::Avatar);
                 self.load_row(ui, LoadKind::Garment);
+                self.fit_ui(ui);
                 self.load_row(ui, LoadKind::Motion);
                 if let Some(m) = self
                     .state

@@ -41,6 +41,17 @@ impl NeuralClothApp {
                         .integer()
                         .text("fps"),
                 );
+                ui.add_enabled(
+                    !state.is_active(),
+                    egui::Checkbox::new(
+                        &mut self.state.train_config.fit_check,
+                        "check the garment's fit",
+                    ),
+                )
+                .on_hover_text(
+                    "Refuse a garment file that clearly does not fit the avatar (use Fit \
+                     garment first); untick to train on it as it is",
+                );
                 ui.horizontal_wrapped(|ui| {
                     let can_start = !state.is_active();
                     if ui

@@ -132,7 +132,7 @@ impl FitCheck {
         if (self.suggested_scale - 1.0).abs() > limits.max_scale_change {
             out.push(format!(
                 "it looks made for a body of another size: fitting would scale it by {:.2} \
-                 (limit {:.0} %)",
+                 (more than the {:.0} % allowed)",
                 self.suggested_scale,
                 limits.max_scale_change * 100.0
             ));

@@ -189,6 +189,33 @@ pub struct FitReport {
     pub inside_relaxed: Option<usize>,
 }
 
+impl FitReport {
+    /// What was done, in one line: units, mirror, scale, offset, vertices inside the body
+    /// as given, aligned and relaxed.
+    pub fn summary(&self) -> String {
+        let p = &self.placement;
+        let relaxed = self
+            .inside_relaxed
+            .map_or_else(|| "not relaxed".to_string(), |n| format!("{n} relaxed"));
+        format!(
+            "units {}{}, {}scale {:.3}, offset {}; vertices inside the body: {} as given, {} \
+             aligned, {relaxed} (of {})",
+            self.units.label(),
+            if self.units_detected {
+                " (detected)"
+            } else {
+                ""
+            },
+            if p.mirrored { "mirrored, " } else { "" },
+            p.scale,
+            format_m(&p.offset_m),
+            self.inside_given,
+            self.inside_aligned,
+            self.vertices
+        )
+    }
+}
+
 /// A fitted garment: the mesh (vertex order, faces and UVs of the file) in metres on the
 /// avatar's rest pose, and what was done.
 #[derive(Clone, Debug)]

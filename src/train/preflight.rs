@@ -110,8 +110,9 @@ pub fn fit_refusal(
     let fitted = garment_file.with_file_name(format!("{stem}-fitted.obj"));
     Ok(Some(format!(
         "the garment '{}' does not fit avatar '{}': {}. Fit it first: `neural-cloth fit \
-         --avatar {} --garment {} --out {}`, then train on {}; or train on it as it is with \
-         `train --skip-fit-check`: {}",
+         --avatar {} --garment {} --out {}` (in the app: Fit garment), then train on {}; or \
+         train on it as it is: `train --skip-fit-check` (in the app: untick \"check the \
+         garment's fit\"): {}",
         garment.name,
         avatar.name,
         problems.join("; "),
