@@ -72,9 +72,6 @@ pub enum FitError {
     /// The simulator refused.
     #[error(transparent)]
     Physics(#[from] PhysicsError),
-    /// The simulation returned something unusable.
-    #[error("relaxing the garment: {0}")]
-    Relax(String),
 }
 
 /// Whether the fit may mirror the garment left/right.

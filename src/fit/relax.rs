@@ -1,6 +1,6 @@
 //! Relaxing an aligned garment onto the avatar's rest pose with the reference simulator: the
 //! same settle on a held rest pose that the training's warm start runs
-//! (`train::warm_start::simulated_drape`), with bending, collision and inertia but without
+//! (`physics::simulator::settle_on_rest_pose`), with bending, collision and inertia but without
 //! gravity, so vertices left inside the body are pushed out and the garment keeps its shape
 //! and place. Gravity is left to the training's warm start: without a pinned waistband a
 //! skirt slides off a frictionless body, and the fit would write it at the feet.
@@ -8,9 +8,9 @@
 use burn::tensor::Device;
 
 use crate::geometry::{TriMesh, Vec3};
-use crate::physics::simulator::{SimOptions, simulate};
+use crate::physics::simulator::settle_on_rest_pose;
 use crate::physics::{Effects, FabricParams};
-use crate::scene::{Avatar, Garment, GarmentOptions, Motion};
+use crate::scene::{Avatar, Garment, GarmentOptions};
 
 use super::FitError;
 
@@ -52,13 +52,7 @@ pub fn relax(
         ..GarmentOptions::default()
     };
     let garment = Garment::new(name, mesh.clone(), avatar, &options)?;
-    let still = Motion::still("rest", avatar.skeleton.rest_pose(), settings.fps, 1);
-    let sim_options = SimOptions {
-        iterations_per_step: settings.iterations,
-        settle_secs: settings.settle_secs,
-        ..Default::default()
-    };
-    let sim = simulate(
+    Ok(settle_on_rest_pose(
         avatar,
         &garment,
         &FabricParams::default(),
@@ -67,22 +61,9 @@ pub fn relax(
             pinning: false,
             ..Effects::default()
         },
-        &still,
+        settings.settle_secs,
         settings.fps,
-        &sim_options,
+        settings.iterations,
         &Device::flex(),
-        &mut |_| true,
-    )?;
-    let frame = sim
-        .frames
-        .into_iter()
-        .last()
-        .ok_or_else(|| FitError::Relax("the simulation returned no frame".into()))?;
-    if frame.len() != mesh.vertex_count() || frame.iter().any(|p| !p.iter().all(|c| c.is_finite()))
-    {
-        return Err(FitError::Relax(
-            "the simulation returned a non-finite or missing vertex".into(),
-        ));
-    }
-    Ok(frame)
+    )?)
 }

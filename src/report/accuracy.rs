@@ -194,11 +194,13 @@ fn step_inputs(scene: &Scene, poses: &[Pose]) -> Result<(Vec<StepInput>, f64), R
             true => Some(Arc::new(PosedBody::from_avatar(&scene.avatar, pose)?)),
             false => None,
         };
+        let quasi_static = !scene.effects.dynamics;
+        let skinned =
+            (pin || quasi_static).then(|| scene.garment.pose_vertices(&scene.avatar, pose));
         inputs.push(StepInput {
             body,
-            pin_targets: pin.then(|| scene.garment.pose_vertices(&scene.avatar, pose)),
-            skinned: (!scene.effects.dynamics)
-                .then(|| scene.garment.pose_vertices(&scene.avatar, pose)),
+            pin_targets: if pin { skinned.clone() } else { None },
+            skinned: if quasi_static { skinned } else { None },
         });
     }
     Ok((

@@ -235,14 +235,14 @@ fn reference_spin(
             true => Some(Arc::new(PosedBody::from_avatar(&scene.avatar, pose)?)),
             false => None,
         };
-        let pins = (scene.effects.pinning && !scene.garment.pinned.is_empty())
-            .then(|| scene.garment.pose_vertices(&scene.avatar, pose));
+        let pinned = scene.effects.pinning && !scene.garment.pinned.is_empty();
+        let quasi_static = !scene.effects.dynamics;
         let skinned =
-            (!scene.effects.dynamics).then(|| scene.garment.pose_vertices(&scene.avatar, pose));
+            (pinned || quasi_static).then(|| scene.garment.pose_vertices(&scene.avatar, pose));
         Ok(StepInput {
             body,
-            pin_targets: pins,
-            skinned,
+            pin_targets: if pinned { skinned.clone() } else { None },
+            skinned: if quasi_static { skinned } else { None },
         })
     };
     let settle = input(first)?;

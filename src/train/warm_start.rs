@@ -15,15 +15,14 @@ use burn::tensor::{Device, Tensor, TensorData};
 
 use crate::geometry::Vec3;
 use crate::model::ClothNet;
-use crate::physics::simulator::{SimOptions, simulate};
+use crate::physics::simulator::settle_on_rest_pose;
 use crate::physics::{Effects, FabricParams};
-use crate::scene::{Avatar, Garment, Motion};
+use crate::scene::{Avatar, Garment};
 
 use super::{BackendKind, TrainError, device_for};
 
 /// The garment after `settle_secs` of simulation on the avatar's rest pose, at `fps` with
-/// `iterations` L-BFGS iterations per step. `progress(done, total)` is called per step;
-/// returning false cancels.
+/// `iterations` L-BFGS iterations per step, on the CPU.
 pub fn simulated_drape(
     avatar: &Avatar,
     garment: &Garment,
@@ -33,35 +32,17 @@ pub fn simulated_drape(
     fps: f32,
     iterations: usize,
 ) -> Result<Vec<Vec3>, TrainError> {
-    let still = Motion::still("rest", avatar.skeleton.rest_pose(), fps, 1);
-    let options = SimOptions {
-        iterations_per_step: iterations,
-        settle_secs,
-        ..Default::default()
-    };
     let device = device_for(BackendKind::Cpu, false);
-    let sim = simulate(
+    Ok(settle_on_rest_pose(
         avatar,
         garment,
         fabric,
         effects,
-        &still,
+        settle_secs,
         fps,
-        &options,
+        iterations,
         &device,
-        &mut |_| true,
-    )?;
-    let frame = sim
-        .frames
-        .into_iter()
-        .last()
-        .ok_or_else(|| TrainError::Data("the drape simulation returned no frame".into()))?;
-    if frame.iter().any(|p| !p.iter().all(|c| c.is_finite())) {
-        return Err(TrainError::Data(
-            "the drape simulation returned a non-finite vertex".into(),
-        ));
-    }
-    Ok(frame)
+    )?)
 }
 
 /// Mean distance between the drape and the template, metres (how far the warm start moves).

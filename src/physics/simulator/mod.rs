@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 use crate::geometry::Vec3;
 
 pub use residual::FrameResidual;
-pub use sequence::{SimProgress, Simulation, simulate};
+pub use sequence::{SimProgress, Simulation, settle_on_rest_pose, simulate};
 
 use crate::physics::collision::{BodyBatch, Contacts, PosedBody};
 use crate::physics::lbfgs::{self, InitialMetric, LbfgsOptions};

@@ -113,3 +113,40 @@ pub fn simulate(
     }
     Ok(sim)
 }
+
+/// The garment after `settle_secs` of simulation on `avatar`'s held rest pose (a one-frame
+/// still motion, `iterations` L-BFGS iterations per step at `fps` steps per second): the
+/// settled positions, checked finite. The warm start's drape and garment fitting's relax.
+#[allow(clippy::too_many_arguments)]
+pub fn settle_on_rest_pose(
+    avatar: &Avatar,
+    garment: &Garment,
+    fabric: &FabricParams,
+    effects: &Effects,
+    settle_secs: f32,
+    fps: f32,
+    iterations: usize,
+    device: &Device,
+) -> Result<Vec<Vec3>, PhysicsError> {
+    let still = Motion::still("rest", avatar.skeleton.rest_pose(), fps, 1);
+    let options = SimOptions {
+        iterations_per_step: iterations,
+        settle_secs,
+        ..Default::default()
+    };
+    let sim = simulate(
+        avatar,
+        garment,
+        fabric,
+        effects,
+        &still,
+        fps,
+        &options,
+        device,
+        &mut |_| true,
+    )?;
+    match sim.frames.into_iter().last() {
+        Some(frame) if frame.iter().all(|p| p.iter().all(|c| c.is_finite())) => Ok(frame),
+        _ => Err(PhysicsError::NonFinite("settled garment".into())),
+    }
+}
