@@ -12,8 +12,8 @@
 //! length and [`checksum`] of the two other files: a truncated or damaged file is refused on
 //! reading instead of being handed to burn. Order of a write: checkpoint files, the metric
 //! history (`RUN/metrics.json`, so the history never ends before the newest checkpoint), the
-//! folder rename, `RUN/latest.json`, then pruning. Checkpoints written before checksums were
-//! recorded (no `files` in `state.json`) are read without the check.
+//! folder rename, `RUN/latest.json`, then pruning ([`super::retention`]). Checkpoints written
+//! before checksums were recorded (no `files` in `state.json`) are read without the check.
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -25,7 +25,7 @@ use crate::io::export::atomic::{AtomicDir, write_atomic};
 
 use super::TrainError;
 use super::metrics::MetricHistory;
-use super::run_dir::{CheckpointState, KEEP_CHECKPOINTS, RunDir};
+use super::run_dir::{CheckpointState, RunDir};
 
 /// The network's weights in a checkpoint folder.
 pub const MODEL_FILE: &str = "model.bpk";
@@ -282,7 +282,7 @@ impl RunDir {
             format!("{{\"step\": {}}}\n", state.step).as_bytes(),
         )?;
         sync_dir(&self.root);
-        self.prune();
+        self.prune(history);
         Ok(path)
     }
 
@@ -352,17 +352,11 @@ impl RunDir {
         done
     }
 
-    /// Deletes all but the newest [`KEEP_CHECKPOINTS`] checkpoints. Each is first renamed to
-    /// a hidden `.step-N.del-PID` (atomic), so that a crash while deleting never leaves a
-    /// half-deleted checkpoint under a checkpoint's name.
-    fn prune(&self) {
-        for step in self.checkpoint_steps().into_iter().skip(KEEP_CHECKPOINTS) {
-            let path = self.checkpoint_path(step);
-            let doomed = path.with_file_name(format!(".step-{step:08}.del-{}", std::process::id()));
-            if std::fs::rename(&path, &doomed).is_ok() {
-                let _ = std::fs::remove_dir_all(&doomed);
-            }
-        }
+    /// Deletes the checkpoints the run's retention policy does not keep (by default the newest
+    /// [`super::run_dir::KEEP_CHECKPOINTS`] and the best by validation; see
+    /// [`super::retention`]).
+    fn prune(&self, history: &MetricHistory) {
+        self.prune_with(self.retention(), history);
     }
 }
 

@@ -7,7 +7,7 @@
 //! - [`session::NeuralSession`]: one optimiser step, validation, checkpoints.
 //! - [`run_dir`]: the run directory layout (resume, eval, bake); [`checkpoint`]: crash-safe
 //!   checkpoint folders, their verification and the fallback to an older one; [`resume`]: the
-//!   scene a run recorded.
+//!   scene a run recorded; [`retention`]: which checkpoints are kept, disk use.
 //! - [`handle`]: the thread loop, commands, events, divergence rollback.
 
 pub mod checkpoint;
@@ -20,6 +20,7 @@ pub mod losses;
 pub mod metrics;
 pub mod preflight;
 pub mod resume;
+pub mod retention;
 pub mod run_dir;
 pub mod session;
 pub mod trained;
