@@ -16,6 +16,8 @@ mod curves;
 mod export_dialog;
 #[path = "app/fit.rs"]
 mod fit;
+#[path = "app/runs.rs"]
+mod runs;
 #[path = "app/status.rs"]
 mod status;
 
@@ -538,6 +540,9 @@ fn train_pause_resume_stop_through_the_buttons() {
     );
     assert!(h.state().state.training.last_checkpoint.is_some());
     click(&mut h, "Reset");
+    h.run();
+    // The run is in no saved project: Reset asks first.
+    h.get_by_label("Reset training").click();
     h.run();
     assert_eq!(*h.state().state.training.state(), TrainingState::Idle);
     assert!(h.state().state.training.history.train.is_empty());

@@ -8,6 +8,7 @@ use std::sync::Arc;
 use super::NeuralClothApp;
 use super::background::{BackgroundJob, poll_job};
 use super::export::{ExportEstimate, ExportFormat, ExportRequest, ExportSettings, Exporter};
+use super::file_picker::PickPurpose;
 use super::state::Level;
 use crate::bake::Preset;
 
@@ -89,13 +90,15 @@ impl NeuralClothApp {
         let estimate = self.export_estimate();
         let running = self.export_job.is_running();
         let progress = self.export_job.progress();
-        let (mut run, mut cancel, mut overwrite) = (false, false, false);
+        let (mut run, mut cancel, mut overwrite, mut browse) = (false, false, false, false);
         egui::Window::new("Export baked sequence")
             .open(&mut open)
             .collapsible(false)
             .show(ui.ctx(), |ui| {
                 let settings = &mut self.state.export;
-                ui.add_enabled_ui(!running, |ui| settings_ui(ui, settings, &motions));
+                browse = ui
+                    .add_enabled_ui(!running, |ui| settings_ui(ui, settings, &motions))
+                    .inner;
                 match &estimate {
                     Ok(e) => ui.label(e.summary()),
                     Err(e) => ui.colored_label(ui.visuals().error_fg_color, e),
@@ -142,6 +145,11 @@ impl NeuralClothApp {
         self.state.export.open = open || running;
         if cancel {
             self.export_job.cancel();
+        }
+        if browse {
+            let purpose = PickPurpose::ExportPath(self.state.export.format.extension());
+            let start = PathBuf::from(self.state.export.path.trim());
+            self.picker.request(purpose, Some(&start));
         }
         if run {
             self.export_clicked();
@@ -232,8 +240,9 @@ impl NeuralClothApp {
 
 /// Format, preset, extra outputs, motion and path. Changing the format gives the path its
 /// extension; typing a path with another format's extension selects that format. Any change
-/// withdraws a pending overwrite question.
-fn settings_ui(ui: &mut egui::Ui, settings: &mut ExportSettings, motions: &[String]) {
+/// withdraws a pending overwrite question. Returns whether "Browse…" was clicked.
+fn settings_ui(ui: &mut egui::Ui, settings: &mut ExportSettings, motions: &[String]) -> bool {
+    let mut browse = false;
     let before = settings.clone();
     egui::ComboBox::from_label("format")
         .selected_text(settings.format.label())
@@ -292,15 +301,7 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut ExportSettings, motions: &[Stri
         {
             settings.format = f;
         }
-        if ui.button("Browse…").clicked() {
-            let ext = settings.format.extension();
-            if let Some(p) = rfd::FileDialog::new()
-                .add_filter(settings.format.label(), &[ext])
-                .save_file()
-            {
-                settings.path = p.display().to_string();
-            }
-        }
+        browse = ui.button("Browse…").clicked();
     });
     let changed = settings.format != before.format
         || settings.path != before.path
@@ -309,6 +310,7 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut ExportSettings, motions: &[Stri
     if changed {
         settings.confirm_overwrite = None;
     }
+    browse
 }
 
 /// Where the files go: every output with its full path, existing ones marked.

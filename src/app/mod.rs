@@ -14,6 +14,8 @@ pub mod cost_panel;
 pub mod curve_math;
 pub mod export;
 pub mod export_dialog;
+pub mod file_browser;
+pub mod file_picker;
 pub mod fit_panel;
 pub mod frame_builder;
 pub mod loading;
@@ -24,6 +26,8 @@ pub mod plot_panel;
 pub mod preview;
 pub mod project;
 pub mod project_io;
+pub mod runs;
+pub mod runs_panel;
 pub mod sim_check;
 pub mod state;
 pub mod timeline;
@@ -46,8 +50,11 @@ pub struct AppOptions {
     pub launcher: Option<Box<dyn TrainerLauncher>>,
     /// Bakes and writes exports (None: the export dialog reports that export is unavailable).
     pub exporter: Option<Box<dyn export::Exporter>>,
-    /// Where the recent-files list is kept (None: [`project::RecentFiles::default_store`]).
+    /// Where the recent-files list is kept (None: [`project::RecentFiles::default_store`]);
+    /// the recent runs are kept beside it.
     pub recent_store: Option<PathBuf>,
+    /// Which file dialog to use (default: the desktop's where there is one).
+    pub file_dialog: file_picker::DialogMode,
 }
 
 /// The built-in default scene: the procedural mannequin, its t-shirt and motions.
@@ -76,6 +83,12 @@ pub struct NeuralClothApp {
     framed_revision: u64,
     /// Repaint request handed to the trainer thread.
     notify: Arc<dyn Fn() + Send + Sync>,
+    /// The file dialogs (desktop or in-app).
+    pub picker: file_picker::FilePicker,
+    /// The question being asked before quitting or resetting.
+    pub confirm: Option<runs_panel::Confirm>,
+    /// Quitting was confirmed (or needed no question): the next close goes through.
+    pub quit_confirmed: bool,
 }
 
 impl NeuralClothApp {
@@ -105,8 +118,13 @@ impl NeuralClothApp {
             export_job: Default::default(),
             framed_revision: 0,
             notify: notify.clone(),
+            picker: file_picker::FilePicker::new(options.file_dialog),
+            confirm: None,
+            quit_confirmed: false,
         };
-        app.state.preview.set_notify(notify);
+        app.state.preview.set_notify(notify.clone());
+        app.state.runs.notify = Some(notify);
+        app.state.mark_saved();
         if let Some(p) = options.project {
             app.state.open_project(&p, || default_scene().ok());
         }
@@ -120,7 +138,10 @@ impl NeuralClothApp {
 
     /// Per-frame work that is not drawing: trainer events, playback time.
     fn tick(&mut self, ui: &egui::Ui) {
+        self.handle_close_request(ui);
         self.state.poll_training();
+        self.state.poll_run_load();
+        self.state.sync_retention();
         let dt = ui.input(|i| i.stable_dt);
         self.state.advance(dt);
         if self.state.playback.playing || self.state.training.state().is_active() {
@@ -141,6 +162,7 @@ impl NeuralClothApp {
                     self.scene_ui(ui);
                     self.motions_ui(ui);
                     self.training_ui(ui);
+                    self.runs_ui(ui);
                     self.fabric_ui(ui);
                     self.effects_ui(ui);
                     self.cost_ui(ui);
@@ -156,6 +178,8 @@ impl NeuralClothApp {
             .frame(egui::Frame::NONE)
             .show(ui, |ui| self.viewport_ui(ui));
         self.export_ui(ui);
+        self.file_picker_ui(ui);
+        self.confirm_ui(ui);
     }
 
     /// The 3D viewport, framed on the scene whenever the scene changes.

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use crate::physics::fabric::PRESET_NAMES;
 
 use super::NeuralClothApp;
+use super::file_picker::PickPurpose;
 use super::state::Level;
 
 /// Which scene part a load targets.
@@ -40,13 +41,13 @@ impl LoadKind {
     }
 }
 
-/// Asks the desktop's file dialog for a file (None when cancelled or when no dialog service
-/// exists, e.g. a bare Linux desktop; the typed-path field is the fallback).
-pub fn pick_file(kind: LoadKind) -> Option<PathBuf> {
-    rfd::FileDialog::new()
-        .set_title(kind.title())
-        .add_filter(kind.title(), kind.extensions())
-        .pick_file()
+/// The split's name as the motion list shows it.
+pub fn split_name(split: crate::scene::Split) -> &'static str {
+    match split {
+        crate::scene::Split::Train => "train",
+        crate::scene::Split::Validation => "validation",
+        crate::scene::Split::Test => "test",
+    }
 }
 
 impl NeuralClothApp {
@@ -86,10 +87,14 @@ impl NeuralClothApp {
             {
                 self.load_file(kind, &PathBuf::from(typed));
             }
-            if ui.button("...").on_hover_text(kind.title()).clicked()
-                && let Some(path) = pick_file(kind)
-            {
-                self.load_file(kind, &path);
+            if ui.button("...").on_hover_text(kind.title()).clicked() {
+                let start = match kind {
+                    LoadKind::Avatar => self.state.scene.sources.avatar.clone(),
+                    LoadKind::Garment => self.state.scene.sources.garment.clone(),
+                    LoadKind::Motion => self.state.scene.sources.motions.last().cloned(),
+                };
+                self.picker
+                    .request(PickPurpose::Load(kind), start.as_deref());
             }
         });
     }
@@ -124,35 +129,33 @@ impl NeuralClothApp {
             });
     }
 
-    /// The motion list (click to show a motion on the timeline).
+    /// The motion list: every motion with its split (train, validation, test), all rows
+    /// visible (the side panel scrolls, the list does not hide rows); click one to show it.
     pub fn motions_ui(&mut self, ui: &mut egui::Ui) {
         egui::CollapsingHeader::new("Motions")
             .default_open(true)
             .show(ui, |ui| {
                 let avatar = self.state.scene.avatar.clone();
                 let mut chosen = None;
-                egui::ScrollArea::vertical()
-                    .id_salt("motion list")
-                    .max_height(92.0)
-                    .show(ui, |ui| {
-                        for (k, m) in avatar.motions.iter().enumerate() {
-                            let split = match self.state.scene.splits.get(k) {
-                                Some(crate::scene::Split::Validation) => " [validation]",
-                                Some(crate::scene::Split::Test) => " [test]",
-                                _ => "",
-                            };
-                            let selected = k == self.state.playback.motion;
-                            if ui
-                                .selectable_label(
-                                    selected,
-                                    format!("{} ({:.1} s){split}", m.name, m.duration_secs()),
-                                )
-                                .clicked()
-                            {
-                                chosen = Some(k);
-                            }
-                        }
-                    });
+                for (k, m) in avatar.motions.iter().enumerate() {
+                    let split = self
+                        .state
+                        .scene
+                        .splits
+                        .get(k)
+                        .copied()
+                        .unwrap_or(crate::scene::Split::Train);
+                    let selected = k == self.state.playback.motion;
+                    let text = format!(
+                        "{} ({:.1} s) · {}",
+                        m.name,
+                        m.duration_secs(),
+                        split_name(split)
+                    );
+                    if ui.selectable_label(selected, text).clicked() {
+                        chosen = Some(k);
+                    }
+                }
                 if avatar.motions.is_empty() {
                     ui.weak("no motions: load a BVH file");
                 }

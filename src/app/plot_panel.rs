@@ -89,8 +89,7 @@ impl NeuralClothApp {
                         .on_hover_text("Stop and forget the run (curves, preview weights)")
                         .clicked()
                     {
-                        self.state.training.reset();
-                        self.state.preview.reset_scene();
+                        self.request_reset();
                     }
                 });
                 let p = self.state.training.progress;

@@ -1,5 +1,5 @@
-//! Project files: the whole setup (scene sources, fabric, effects, training config, run
-//! directory, view settings) as one human-edited TOML file, plus the recent-files list
+//! Project files: the whole setup (scene sources, fabric, effects, training config, runs
+//! folder, the run shown, checkpoint retention, view settings) as one human-edited TOML file, plus the recent-files list
 //! (machine-written JSON). Paths inside a project are stored relative to the project file
 //! when they lie below its folder, and resolved against it when opened.
 
@@ -11,6 +11,7 @@ use crate::physics::FabricParams;
 use crate::render::DrawOptions;
 use crate::scene::Effects;
 use crate::train::TrainConfig;
+use crate::train::retention::Retention;
 
 use super::metrics::XAxis;
 
@@ -103,8 +104,14 @@ pub struct ProjectFile {
     pub effects: Effects,
     /// Training configuration (window, fps, batch, schedule).
     pub training: TrainConfig,
-    /// Run directory for checkpoints; None = a new folder under `runs/`.
-    pub run_dir: Option<PathBuf>,
+    /// Folder new runs are written under; None = `runs/` beside the project file. Read from
+    /// `run_dir` too (its name in earlier files).
+    #[serde(alias = "run_dir")]
+    pub runs_folder: Option<PathBuf>,
+    /// The run whose trained model the project shows (reopened with the project).
+    pub run: Option<PathBuf>,
+    /// Which checkpoints a run keeps.
+    pub retention: Retention,
     /// View settings.
     pub view: ViewSettings,
 }
@@ -117,7 +124,9 @@ impl Default for ProjectFile {
             fabric: FabricParams::default(),
             effects: Effects::default(),
             training: TrainConfig::default(),
-            run_dir: None,
+            runs_folder: None,
+            run: None,
+            retention: Retention::default(),
             view: ViewSettings::default(),
         }
     }
@@ -167,7 +176,8 @@ impl ProjectFile {
             .iter_mut()
             .chain(s.garment.iter_mut())
             .chain(s.motions.iter_mut())
-            .chain(self.run_dir.iter_mut())
+            .chain(self.runs_folder.iter_mut())
+            .chain(self.run.iter_mut())
         {
             *p = f(p);
         }
@@ -313,11 +323,15 @@ mod tests {
         p.training.max_steps = Some(500);
         p.view.w = 1.5;
         p.view.draw.wireframe = true;
+        p.run = Some(dir.path().join("runs/run-1"));
+        p.retention.keep_newest = 5;
         let file = dir.path().join("my.ncproj.toml");
         p.save(&file).unwrap();
         let text = std::fs::read_to_string(&file).unwrap();
         assert!(
-            text.contains("garments/shirt.obj") && !text.contains(&*dir.path().to_string_lossy()),
+            text.contains("garments/shirt.obj")
+                && text.contains("runs/run-1")
+                && !text.contains(&*dir.path().to_string_lossy()),
             "{text}"
         );
         let back = ProjectFile::open(&file).unwrap();

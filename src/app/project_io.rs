@@ -17,7 +17,9 @@ impl AppState {
             fabric: self.fabric.clone(),
             effects: self.effects,
             training: self.train_config.clone(),
-            run_dir: self.run_dir.clone(),
+            runs_folder: self.runs.folder.clone(),
+            run: self.current_run(),
+            retention: self.runs.retention,
             view: ViewSettings {
                 w: self.w,
                 draw: self.draw,
@@ -34,7 +36,11 @@ impl AppState {
             .to_project()
             .save(path)
             .and_then(|()| self.recent.push(path));
-        self.project_done(path, result, "saved")
+        let saved = self.project_done(path, result, "saved");
+        if saved {
+            self.mark_saved();
+        }
+        saved
     }
 
     fn project_done(&mut self, path: &Path, result: Result<(), ProjectError>, verb: &str) -> bool {
@@ -52,7 +58,7 @@ impl AppState {
     }
 
     /// Opens a project: loads its avatar, garment and motions (the built-in scene parts where
-    /// it names none) and applies its settings. A file that does not read as a project is
+    /// it names none), applies its settings and reopens its run (in the background). A file that does not read as a project is
     /// refused before anything changes (the running training and the scene stay); otherwise
     /// the training is reset first. Load errors are shown; what loads is kept.
     pub fn open_project(
@@ -76,7 +82,9 @@ impl AppState {
             .unwrap_or_else(|| "custom".into());
         self.effects = project.effects;
         self.train_config = project.training.clone();
-        self.run_dir = project.run_dir.clone();
+        self.runs.folder = project.runs_folder.clone();
+        self.runs.retention = project.retention.clamped();
+        self.runs.linked = None;
         self.w = project.view.w;
         self.draw = project.view.draw;
         self.curves.x_axis = project.view.x_axis;
@@ -104,6 +112,12 @@ impl AppState {
             self.load_motion(m);
         }
         let result = self.recent.push(path);
-        self.project_done(path, result, "opened")
+        let opened = self.project_done(path, result, "opened");
+        // The run is reopened in the background; the project counts as unchanged meanwhile.
+        if let Some(run) = &project.run {
+            self.open_run(run, false);
+        }
+        self.mark_saved();
+        opened
     }
 }

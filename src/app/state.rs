@@ -107,6 +107,8 @@ pub struct TypedPaths {
     pub motion: String,
     /// Project file path.
     pub project: String,
+    /// Run folder path.
+    pub run: String,
 }
 
 /// Which curves the plot panel shows.
@@ -157,8 +159,8 @@ pub struct AppState {
     pub effects: Effects,
     /// Training configuration.
     pub train_config: TrainConfig,
-    /// Run directory; None = a new folder under `runs/` per run.
-    pub run_dir: Option<PathBuf>,
+    /// Runs: the folder new runs go to, the run shown, recent runs, checkpoint retention.
+    pub runs: super::runs::RunsState,
     /// Viewport toggles.
     pub draw: DrawOptions,
     /// Dynamic-code weight of the preview, in [0, 2].
@@ -234,7 +236,7 @@ impl AppState {
             fabric_preset: "default".into(),
             effects: parts.effects,
             train_config,
-            run_dir: None,
+            runs: super::runs::RunsState::new(recent.store.as_deref()),
             draw: DrawOptions::default(),
             w: 1.0,
             playback: Playback::default(),
@@ -445,13 +447,8 @@ impl AppState {
             self.message(Level::Error, e.to_string());
             return;
         }
-        let run_dir = self.run_dir.clone().unwrap_or_else(|| {
-            let stamp = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map(|d| d.as_secs())
-                .unwrap_or(0);
-            PathBuf::from("runs").join(format!("{}-{stamp}", garment.name))
-        });
+        // The trainer makes a fresh `run-<time>` folder under the runs folder.
+        let run_dir = self.runs_folder();
         let scene = match self.assemble_scene(&garment) {
             Ok(s) => s,
             Err(e) => {

@@ -221,7 +221,8 @@ impl TrainingControl {
         }
     }
 
-    /// Stops any run and forgets it (history, progress, preview weights).
+    /// Stops any run and forgets it (history, progress, preview weights, run folder; the
+    /// folder stays on disk).
     pub fn reset(&mut self) {
         if let Some(h) = self.handle.take() {
             h.stop();
@@ -240,6 +241,35 @@ impl TrainingControl {
         self.markers.clear();
         self.latest_weights = None;
         self.last_checkpoint = None;
+        self.run_dir = None;
+    }
+
+    /// Shows a run opened from its folder (not while a run is active): its curves, its step
+    /// and the weights of its newest checkpoint, as a finished run.
+    pub fn show_run(
+        &mut self,
+        run_dir: PathBuf,
+        step: u64,
+        history: MetricHistory,
+        weights: Arc<ModelArtifact>,
+    ) {
+        if self.state.is_active() {
+            return;
+        }
+        self.progress = Progress {
+            step,
+            elapsed_secs: history.train.last().map_or(0.0, |r| r.wall_secs),
+            ..Default::default()
+        };
+        self.history = history;
+        self.markers.clear();
+        self.latest_weights = Some((step, weights));
+        self.state = TrainingState::Finished(Ok(format!(
+            "opened run at step {step}: {}",
+            run_dir.display()
+        )));
+        self.last_checkpoint = None;
+        self.run_dir = Some(run_dir);
     }
 
     /// Sends new fabric parameters to a live run (no-op when idle).
