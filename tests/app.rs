@@ -32,7 +32,7 @@ use neural_cloth::app::panels::LoadKind;
 use neural_cloth::app::{
     AppOptions, NeuralClothApp, TrainerLauncher, TrainingRequest, TrainingState,
 };
-use neural_cloth::model::InferenceWeights;
+use neural_cloth::model::ModelArtifact;
 use neural_cloth::physics::FabricParams;
 use neural_cloth::train::handle::{LoopConfig, Session, TrainerHandle};
 use neural_cloth::train::metrics::MetricHistory;
@@ -424,7 +424,7 @@ impl Session for FakeSession {
     fn weights_finite(&self) -> bool {
         true
     }
-    fn snapshot(&self) -> Result<InferenceWeights, String> {
+    fn snapshot(&self) -> Result<ModelArtifact, String> {
         Err("no network in the fake session".into())
     }
     fn checkpoint(&mut self, step: u64, _history: &MetricHistory) -> Result<PathBuf, String> {

@@ -8,7 +8,9 @@ use std::time::Duration;
 use burn::tensor::{Tensor, TensorData};
 use neural_cloth::bake::{BakeFormat, BakeOptions, ModelSource, bake};
 use neural_cloth::io::export::{read_mdd, read_pc2};
-use neural_cloth::model::{ClothNetConfig, DescriptorConfig, InferenceEngine, InferenceOptions};
+use neural_cloth::model::{
+    ClothNetConfig, DescriptorConfig, InferenceEngine, InferenceOptions, ModelArtifact,
+};
 use neural_cloth::physics::{FabricParams, PhysicsTerms};
 use neural_cloth::scene::Scene;
 use neural_cloth::scene::config::SceneConfig;
@@ -21,6 +23,8 @@ use neural_cloth::train::{
 };
 
 // Crash safety (kill, damaged files, full disk) and resuming: `pipeline/*.rs`.
+#[path = "pipeline/artifact.rs"]
+mod artifact;
 #[path = "pipeline/corrupt.rs"]
 mod corrupt;
 #[path = "pipeline/crash.rs"]
@@ -86,15 +90,7 @@ fn setup(dir: &Path, train: TrainConfig, location: Option<RunLocation>) -> Train
 
 /// A fresh inference engine of a trained run on its own scene, at the training rate.
 fn engine_of(trained: &neural_cloth::train::TrainedModel) -> InferenceEngine {
-    InferenceEngine::from_scene(
-        trained.weights.clone(),
-        &trained.scene.avatar,
-        &trained.scene.garment,
-        &DescriptorConfig::default(),
-        30.0,
-        InferenceOptions::default(),
-    )
-    .unwrap()
+    trained.engine(InferenceOptions::default()).unwrap()
 }
 
 fn quick_config() -> TrainConfig {
@@ -242,27 +238,22 @@ fn checkpoints_reload_identically_and_resume_continues() {
     // The checkpoint reloads to exactly the weights the trainer had.
     let trained = load_trained(&run).unwrap();
     assert_eq!(trained.step, 6);
-    assert_eq!(trained.weights, *snapshot);
-    let predict = |weights: neural_cloth::model::InferenceWeights| {
-        let mut engine = InferenceEngine::from_scene(
-            weights,
-            &trained.scene.avatar,
-            &trained.scene.garment,
-            &DescriptorConfig::default(),
-            30.0,
-            InferenceOptions::default(),
-        )
-        .unwrap();
+    assert_eq!(trained.artifact, *snapshot);
+    let predict = |model: &ModelArtifact| {
+        let mut engine = model
+            .engine(
+                &trained.scene.avatar,
+                &trained.scene.garment,
+                InferenceOptions::default(),
+            )
+            .unwrap();
         let motion = &trained.scene.motions[0].0;
         for pose in motion.frames.iter().take(10) {
             engine.step(pose, 1.0).unwrap();
         }
         engine.garment_positions().to_vec()
     };
-    assert_eq!(
-        predict(trained.weights.clone()),
-        predict((*snapshot).clone())
-    );
+    assert_eq!(predict(&trained.artifact), predict(&snapshot));
 
     // Resume: the step count and the metric history continue.
     let resumed = TrainConfig {
@@ -309,7 +300,7 @@ impl<S: Session> Session for Poisoned<S> {
     fn weights_finite(&self) -> bool {
         self.inner.weights_finite()
     }
-    fn snapshot(&self) -> Result<neural_cloth::model::InferenceWeights, String> {
+    fn snapshot(&self) -> Result<neural_cloth::model::ModelArtifact, String> {
         self.inner.snapshot()
     }
     fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, String> {
@@ -403,7 +394,7 @@ fn baked_caches_round_trip_and_bad_requests_leave_nothing() {
             fps: 30.0,
             ..Default::default()
         };
-        let mut source = ModelSource::new(engine(), 30.0);
+        let mut source = ModelSource::new(engine());
         let report = bake(
             &scene.avatar,
             &scene.garment,
@@ -433,7 +424,7 @@ fn baked_caches_round_trip_and_bad_requests_leave_nothing() {
             ..Default::default()
         },
     ] {
-        let mut source = ModelSource::new(engine(), 30.0);
+        let mut source = ModelSource::new(engine());
         assert!(
             bake(
                 &scene.avatar,
@@ -446,7 +437,7 @@ fn baked_caches_round_trip_and_bad_requests_leave_nothing() {
             .is_err()
         );
     }
-    let mut source = ModelSource::new(engine(), 30.0);
+    let mut source = ModelSource::new(engine());
     let cancelled = bake(
         &scene.avatar,
         &scene.garment,
@@ -584,7 +575,7 @@ fn gltf_export_validates_and_reproduces_the_baked_frames() {
             include_body: true,
             ..Default::default()
         };
-        let mut source = ModelSource::new(engine(), 30.0);
+        let mut source = ModelSource::new(engine());
         reports.push(
             bake(
                 &scene.avatar,

@@ -5,8 +5,10 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::bake::{BakeFormat, BakeOptions, Preset, frame_range, sibling_path};
-use crate::model::InferenceWeights;
+use crate::bake::{
+    BakeFormat, BakeOptions, BakeReport, ModelSource, Preset, bake, frame_range, sibling_path,
+};
+use crate::model::{InferenceOptions, ModelArtifact};
 use crate::scene::{Avatar, Garment, Motion};
 
 /// Output formats of a baked sequence.
@@ -217,8 +219,9 @@ pub struct ExportRequest {
     pub garment: Arc<Garment>,
     /// Motion index.
     pub motion: usize,
-    /// Weights to bake with (None: the untrained or template preview is not exportable).
-    pub weights: Option<Arc<InferenceWeights>>,
+    /// Weights to bake with, with the settings they were trained with (None: the untrained
+    /// or template preview is not exportable).
+    pub weights: Option<Arc<ModelArtifact>>,
     /// Dynamic weight `w` in [0, 2].
     pub w: f32,
     /// Frame rate of the bake, fps.
@@ -245,6 +248,82 @@ pub trait Exporter: Send + Sync {
         request: ExportRequest,
         progress: &mut dyn FnMut(usize, usize) -> bool,
     ) -> Result<String, String>;
+}
+
+/// The exporter of the app: bakes with the model's own settings (its training rate and
+/// descriptor settings travel with the weights) through the `bake` layer, as `neural-cloth
+/// bake` does.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ModelExporter;
+
+impl Exporter for ModelExporter {
+    fn export(
+        &self,
+        request: ExportRequest,
+        progress: &mut dyn FnMut(usize, usize) -> bool,
+    ) -> Result<String, String> {
+        let model = request
+            .weights
+            .as_deref()
+            .ok_or("train a model first: there are no weights to bake with")?;
+        let motion = request
+            .avatar
+            .motions
+            .get(request.motion)
+            .ok_or("no such motion")?;
+        // The model runs at the rate it was trained at; the bake resamples to `request.fps`.
+        let options = InferenceOptions {
+            skin_body: false,
+            ..Default::default()
+        };
+        let engine = model
+            .engine(&request.avatar, &request.garment, options)
+            .map_err(|e| e.to_string())?;
+        let options = BakeOptions {
+            format: request.format.bake_format(),
+            out: request.path.clone(),
+            fps: request.fps,
+            w: request.w,
+            include_body: request.include_body,
+            preset: request.preset,
+            ..Default::default()
+        };
+        let report = bake(
+            &request.avatar,
+            &request.garment,
+            motion,
+            &mut ModelSource::new(engine),
+            &options,
+            progress,
+        )
+        .map_err(|e| e.to_string())?;
+        let mut outputs = report.outputs.clone();
+        if request.rest_obj && request.format.is_point_cache() {
+            let path = rest_obj_path(&options.out);
+            outputs.push(write_rest_obj(&request.garment, request.preset, &path)?);
+        }
+        Ok(export_summary(&report, &outputs))
+    }
+}
+
+/// "wrote N frames to PATHS" with the morph targets and their error for glTF.
+fn export_summary(report: &BakeReport, outputs: &[PathBuf]) -> String {
+    let mut line = format!(
+        "wrote {} frames to {}",
+        report.frames,
+        outputs
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    if let (Some(t), Some(e)) = (report.morph_targets, report.max_error_m) {
+        line.push_str(&format!(
+            " ({t} morph targets, max error {:.2} mm)",
+            e * 1e3
+        ));
+    }
+    line
 }
 
 /// What an export will write, shown before it starts.

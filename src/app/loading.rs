@@ -61,14 +61,9 @@ pub fn load_garment(path: &Path, avatar: &Avatar) -> Result<Loaded<Arc<Garment>>
         }
     }
     .map_err(|e| e.to_string())?;
-    let name = loaded.name.to_ascii_lowercase();
-    let loose = ["skirt", "dress", "gown", "robe"]
-        .iter()
-        .any(|k| name.contains(k));
-    let garment_options = GarmentOptions {
-        smoothing_passes: if loose { 30 } else { 3 },
-        ..Default::default()
-    };
+    // The passes chosen here are kept in `Garment::smoothing_passes`, which the run's scene
+    // description records.
+    let garment_options = GarmentOptions::for_name(&loaded.name);
     let garment = Garment::new(loaded.name.clone(), loaded.mesh, avatar, &garment_options)
         .map_err(|e| format!("{e}: {}", path.display()))?;
     let mut warnings = loaded.warnings;

@@ -8,7 +8,9 @@ use std::sync::Arc;
 
 use crate::geometry::Vec3;
 use crate::model::network::{ClothNetConfig, EncoderKind};
-use crate::model::{DescriptorConfig, InferenceEngine, InferenceOptions, InferenceWeights};
+use crate::model::{
+    DescriptorConfig, InferenceEngine, InferenceOptions, InferenceWeights, ModelArtifact,
+};
 use crate::scene::{Avatar, Garment, Motion};
 
 /// Frames replayed before a jump so that the recurrent state reflects recent motion.
@@ -51,7 +53,7 @@ pub struct Preview {
     /// Called when a background build finishes (requests a repaint).
     notify: Option<Arc<dyn Fn() + Send + Sync>>,
     source: Option<WeightsSource>,
-    pending: Option<(u64, Arc<InferenceWeights>)>,
+    pending: Option<(u64, Arc<ModelArtifact>)>,
     fed: Option<Fed>,
     /// Why the preview fell back to the skinned template, if it did.
     pub error: Option<String>,
@@ -97,7 +99,7 @@ impl Preview {
     }
 
     /// Offers trainer weights of `step`; used from the next frame if they fit the scene.
-    pub fn offer_weights(&mut self, step: u64, weights: Arc<InferenceWeights>) {
+    pub fn offer_weights(&mut self, step: u64, weights: Arc<ModelArtifact>) {
         let current = match self.source {
             Some(WeightsSource::Snapshot(s)) => Some(s),
             _ => None,
@@ -229,9 +231,18 @@ impl Preview {
     ) -> Option<Vec<Vec3>> {
         self.ensure_engine(avatar, garment, fps, dynamics);
         let engine = self.engine.as_mut()?;
-        if let Some((step, weights)) = self.pending.take() {
+        if let Some((step, model)) = self.pending.take() {
             self.generation += 1;
-            match engine.set_weights((*weights).clone()) {
+            // Weights trained at another rate or with other descriptors need their own engine.
+            let swapped = if model.fits_engine(engine) {
+                engine.set_weights(model.weights.clone())
+            } else {
+                let options = engine.options().clone();
+                model
+                    .engine(avatar, garment, options)
+                    .map(|fresh| *engine = fresh)
+            };
+            match swapped {
                 Ok(()) => {
                     self.source = Some(WeightsSource::Snapshot(step));
                     self.fed = None;
@@ -243,6 +254,7 @@ impl Preview {
                 }
             }
         }
+        let fps = engine.fps();
         let frame = if fps > 0.0 && time_secs.is_finite() {
             (time_secs.max(0.0) * fps).round() as usize
         } else {
@@ -340,9 +352,9 @@ pub fn untrained_engine(
         skin_body: false,
         ..Default::default()
     };
-    let mut engine =
-        InferenceEngine::from_scene(weights.clone(), avatar, garment, &descriptors, fps, options)
-            .map_err(|e| e.to_string())?;
+    let mut engine = ModelArtifact::new(weights.clone(), descriptors, fps)
+        .into_engine(avatar, garment, options)
+        .map_err(|e| e.to_string())?;
     // Runs WARMUP_FRAMES + 1 frames from the middle of `motion`; returns the rest-space offsets
     // and the mean magnitude of the dynamic code of the last frame.
     let run = |engine: &mut InferenceEngine,

@@ -2,12 +2,13 @@
 //! [`TrainerHandle`]: the UI sends commands and drains events once per frame; training itself
 //! runs on the trainer's own thread, never on the UI thread.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::model::InferenceWeights;
+use crate::model::ModelArtifact;
 use crate::physics::FabricParams;
 use crate::scene::Scene;
+use crate::scene::config::SceneConfig;
 use crate::train::TrainConfig;
 use crate::train::handle::{TrainCommand, TrainEvent, TrainerHandle};
 
@@ -63,6 +64,50 @@ pub struct TrainingRequest {
     pub sources: super::project::SceneSources,
 }
 
+impl TrainingRequest {
+    /// The scene description the run records: the built-in scene with the loaded files in
+    /// place of its avatar, garment and motions (absolute paths), the garment with the
+    /// skin-weight smoothing it was actually loaded with, so that `eval` and `bake` rebuild
+    /// the garment the model was trained on.
+    pub fn scene_config(&self) -> SceneConfig {
+        use crate::scene::config::{AvatarSource, GarmentSource, MotionSource, Split};
+        let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        let mut config = SceneConfig::default_scene();
+        let sources = &self.sources;
+        config.effects = self.scene.effects;
+        config.training_fps = self.scene.training_fps;
+        if let Some(a) = &sources.avatar {
+            config.avatar = AvatarSource::File {
+                path: abs(a),
+                units: None,
+            };
+        }
+        if let Some(g) = &sources.garment {
+            config.garment = GarmentSource::File {
+                path: abs(g),
+                units: None,
+                smoothing_passes: Some(self.scene.garment.smoothing_passes),
+            };
+        }
+        // A loaded avatar brings its own animations; loaded BVH motions come on top.
+        let mut motion_files: Vec<&PathBuf> = sources.avatar.iter().collect();
+        motion_files.extend(&sources.motions);
+        if !motion_files.is_empty() {
+            config.motions = motion_files
+                .into_iter()
+                .map(|m| MotionSource::File {
+                    path: abs(m),
+                    units: None,
+                    split: Split::Train,
+                    name: None,
+                    joint_map: None,
+                })
+                .collect();
+        }
+        config
+    }
+}
+
 /// Starts a trainer thread for a request (the real one builds a training session from the
 /// scene; tests pass a double). `notify` must be called after each event (it requests a
 /// repaint).
@@ -98,7 +143,7 @@ pub struct TrainingControl {
     /// Settings changed during the run (fabric, window, learning rate), for the curves.
     pub markers: Vec<SettingMarker>,
     /// Latest weight snapshot for the preview, with its step.
-    pub latest_weights: Option<(u64, Arc<InferenceWeights>)>,
+    pub latest_weights: Option<(u64, Arc<ModelArtifact>)>,
     /// Run directory of the current or last run.
     pub run_dir: Option<PathBuf>,
     /// Last checkpoint written.

@@ -25,22 +25,22 @@ pub trait FrameSource {
     fn rest(&self) -> Vec<Vec3>;
 }
 
-/// The trained network through the fast inference engine.
+/// The trained network through the fast inference engine, stepped at the engine's own rate
+/// (the model's training rate, [`InferenceEngine::fps`]).
 pub struct ModelSource {
     engine: InferenceEngine,
-    fps: f32,
 }
 
 impl ModelSource {
-    /// Wraps an engine built for the model's training rate `fps`.
-    pub fn new(engine: InferenceEngine, fps: f32) -> Self {
-        Self { engine, fps }
+    /// Wraps an engine (built from a [`crate::model::ModelArtifact`], at its training rate).
+    pub fn new(engine: InferenceEngine) -> Self {
+        Self { engine }
     }
 }
 
 impl FrameSource for ModelSource {
     fn native_fps(&self) -> f32 {
-        self.fps
+        self.engine.fps()
     }
 
     fn reset(&mut self) {

@@ -14,8 +14,8 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::model::{
-    ClothNetConfig, DescriptorConfig, EncoderKind, InferenceEngine, InferenceOptions,
-    InferenceWeights, Precision,
+    ClothNetConfig, DescriptorConfig, EncoderKind, InferenceOptions, InferenceWeights,
+    ModelArtifact, Precision,
 };
 use crate::scene::procedural::{GarmentKind, MotionKind, builtin_garment, mannequin, motion};
 use crate::scene::{Avatar, Garment, Motion};
@@ -160,15 +160,9 @@ pub fn bench_inference(
     reset_peak_rss();
     let before = rss_bytes();
     let build_start = Instant::now();
-    let mut engine = InferenceEngine::from_scene(
-        weights,
-        avatar,
-        garment,
-        &DescriptorConfig::default(),
-        FPS,
-        options,
-    )
-    .map_err(|e| e.to_string())?;
+    let mut engine = ModelArtifact::new(weights, DescriptorConfig::default(), FPS)
+        .into_engine(avatar, garment, options)
+        .map_err(|e| e.to_string())?;
     let build_ms = build_start.elapsed().as_secs_f64() * 1e3;
     let mut frames = frames.max(1);
     let mut times = Vec::with_capacity(MAX_FRAMES);
@@ -297,7 +291,6 @@ pub fn measure_precision_error(
         options.basis_precision.name(),
         options.layer_precision.name()
     );
-    let descriptors = DescriptorConfig::default();
     let exact = InferenceOptions {
         skin_body: false,
         ..InferenceOptions::exact()
@@ -307,7 +300,8 @@ pub fn measure_precision_error(
         ..options
     };
     let build = |w, o| {
-        InferenceEngine::from_scene(w, avatar, garment, &descriptors, FPS, o)
+        ModelArtifact::new(w, DescriptorConfig::default(), FPS)
+            .into_engine(avatar, garment, o)
             .map_err(|e| e.to_string())
     };
     let mut reference = build(weights.clone(), exact)?;

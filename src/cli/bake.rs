@@ -197,8 +197,7 @@ pub fn run(args: BakeArgs) -> anyhow::Result<()> {
     )?;
     let options = options(&args.output, &motion, args.w);
     neural_cloth::bake::check_options(&options)?;
-    let engine = trained.garment_engine()?;
-    let mut source = ModelSource::new(engine, fps);
+    let mut source = ModelSource::new(trained.garment_engine()?);
     run_bake(&trained.scene, &motion, &mut source, &options)
 }
 

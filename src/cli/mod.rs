@@ -84,7 +84,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             neural_cloth::app::run_app(neural_cloth::app::AppOptions {
                 project: cli.project,
                 launcher: Some(Box::new(app_launcher::RealLauncher)),
-                exporter: Some(Box::new(app_launcher::RealExporter)),
+                exporter: Some(Box::new(neural_cloth::app::export::ModelExporter)),
                 ..Default::default()
             })
         }

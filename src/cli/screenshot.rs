@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use neural_cloth::model::{InferenceEngine, InferenceOptions};
+use neural_cloth::model::InferenceOptions;
 use neural_cloth::render::frame::SceneFrame;
 use neural_cloth::render::offscreen::screenshot;
 use neural_cloth::render::renderer::DrawOptions;
@@ -75,15 +75,8 @@ pub fn run(args: ScreenshotArgs) -> anyhow::Result<()> {
     let pose = motion.sample(args.time);
     let garment_positions = match &trained {
         Some(t) => {
-            let fps = t.meta.train.fps;
-            let mut engine = InferenceEngine::from_scene(
-                t.weights.clone(),
-                &scene.avatar,
-                &scene.garment,
-                &t.meta.descriptors,
-                fps,
-                InferenceOptions::default(),
-            )?;
+            let mut engine = t.engine(InferenceOptions::default())?;
+            let fps = engine.fps();
             let frames = (args.time.max(0.0) * fps).round() as usize;
             for k in 0..=frames {
                 engine.step(&motion.sample(k as f32 / fps), args.w)?;

@@ -14,7 +14,7 @@ use anyhow::Context;
 
 use neural_cloth::bake::{BakeFormat, BakeOptions, ModelSource, bake};
 use neural_cloth::model::{
-    ClothNetConfig, DescriptorConfig, InferenceEngine, InferenceOptions, InferenceWeights,
+    ClothNetConfig, DescriptorConfig, InferenceEngine, InferenceOptions, ModelArtifact,
 };
 use neural_cloth::scene::Scene;
 use neural_cloth::train::{RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer};
@@ -181,7 +181,7 @@ struct Preview {
     scene: Scene,
     fps: f32,
     engine: Option<InferenceEngine>,
-    weights: Option<Arc<InferenceWeights>>,
+    weights: Option<Arc<ModelArtifact>>,
     motion: usize,
     frame: usize,
     frames: u64,
@@ -198,21 +198,15 @@ impl Preview {
     }
 
     /// Swaps in a snapshot (building the engine on the first).
-    fn set_weights(&mut self, weights: Arc<InferenceWeights>) -> anyhow::Result<()> {
+    fn set_weights(&mut self, model: Arc<ModelArtifact>) -> anyhow::Result<()> {
         match &mut self.engine {
-            Some(engine) => engine.set_weights((*weights).clone())?,
+            Some(engine) => engine.set_weights(model.weights.clone())?,
             None => {
-                self.engine = Some(InferenceEngine::from_scene(
-                    (*weights).clone(),
-                    &self.scene.avatar,
-                    &self.scene.garment,
-                    &DescriptorConfig::default(),
-                    self.fps,
-                    Self::options(),
-                )?)
+                self.engine =
+                    Some(model.engine(&self.scene.avatar, &self.scene.garment, Self::options())?)
             }
         }
-        self.weights = Some(weights);
+        self.weights = Some(model);
         Ok(())
     }
 
@@ -248,15 +242,8 @@ impl Preview {
         let Some((motion, _)) = self.scene.motions.first() else {
             return Ok(());
         };
-        let engine = InferenceEngine::from_scene(
-            (**weights).clone(),
-            &self.scene.avatar,
-            &self.scene.garment,
-            &DescriptorConfig::default(),
-            self.fps,
-            Self::options(),
-        )?;
-        let mut source = ModelSource::new(engine, self.fps);
+        let engine = weights.engine(&self.scene.avatar, &self.scene.garment, Self::options())?;
+        let mut source = ModelSource::new(engine);
         let frames = (motion.duration_secs() * 30.0).floor() as usize + 1;
         let options = BakeOptions {
             format: BakeFormat::Pc2,

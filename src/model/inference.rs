@@ -172,6 +172,8 @@ impl Buffers {
 pub struct InferenceEngine {
     net: CompiledNet,
     options: InferenceOptions,
+    fps: f32,
+    descriptors: DescriptorConfig,
     pool: Option<rayon::ThreadPool>,
     stream: DescriptorStream,
     template: Vec<f32>,
@@ -320,6 +322,8 @@ impl InferenceEngine {
             stream,
             pool,
             options,
+            fps,
+            descriptors: descriptors.clone(),
             net,
         })
     }
@@ -587,6 +591,16 @@ impl InferenceEngine {
     /// The options the engine was built with.
     pub fn options(&self) -> &InferenceOptions {
         &self.options
+    }
+
+    /// Frame rate the engine takes poses at (the model's training rate), frames per second.
+    pub fn fps(&self) -> f32 {
+        self.fps
+    }
+
+    /// The descriptor settings the engine takes poses with.
+    pub fn descriptors(&self) -> &DescriptorConfig {
+        &self.descriptors
     }
 
     /// Skeleton indices of the network's input joints.

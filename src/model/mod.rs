@@ -8,8 +8,11 @@
 //! skinning. [`weights::InferenceWeights`] copies a trained network into plain matrices and
 //! [`inference::InferenceEngine`] runs it on raw poses with the GRU state carried over, on its
 //! own [`compiled::CompiledNet`] copy (f32 or f16 storage, SIMD [`kernels`]).
+//! [`artifact::ModelArtifact`] keeps weights with the settings they were trained with and is
+//! where engines of a trained model are built.
 
 pub mod activity;
+pub mod artifact;
 pub mod compiled;
 pub mod descriptors;
 pub mod gru;
@@ -19,6 +22,7 @@ pub mod network;
 pub mod skinning;
 pub mod weights;
 
+pub use artifact::ModelArtifact;
 pub use descriptors::{
     DYNAMIC_DIM, DescriptorConfig, DescriptorExtractor, DescriptorStream, Descriptors, STATIC_DIM,
     dynamic_channel_rms,

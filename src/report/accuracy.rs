@@ -511,7 +511,7 @@ pub fn run_cost_experiment(
         ) {
             return Err(ReportError::Cancelled);
         }
-        let mut engine = engine_for(&snapshot.weights, scene, fps)?;
+        let mut engine = engine_for(&snapshot.weights, scene)?;
         let frames = predict(&mut engine, &poses, 1.0)?;
         let ms = time_inference(&mut engine, &poses, 60)?;
         let (mean_mm, p95_mm) = errors_mm(&frames, &reference);

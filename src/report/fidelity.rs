@@ -438,7 +438,7 @@ fn disentangle(scene: &Scene, ours: &RunOutcome, fps: f32) -> Result<Disentangle
         .encode_dynamic(dynamic, None)
         .map(|z| z.abs().max().into_scalar::<f32>());
     // The engine on the same frames at w = 0, 1, 2.
-    let mut engine = engine_for(&ours.weights, scene, fps)?;
+    let mut engine = engine_for(&ours.weights, scene)?;
     let mut zd_max_engine = 0.0f32;
     let mut first: Option<Vec<Vec3>> = None;
     let mut still_change_mm = 0.0f64;
@@ -525,10 +525,10 @@ fn skirt_spin(
             .map(|(x, p)| hem_radius_m(&scene.avatar, p, x, &hem))
             .collect()
     };
-    let mut engine = engine_for(&ours.weights, scene, fps)?;
+    let mut engine = engine_for(&ours.weights, scene)?;
     let ours_m = radii(&predict(&mut engine, &poses, 1.0)?);
     let static_m = radii(&predict(&mut engine, &poses, 0.0)?);
-    let mut snug_engine = engine_for(&snug.weights, scene, fps)?;
+    let mut snug_engine = engine_for(&snug.weights, scene)?;
     let snug_m = radii(&predict(&mut snug_engine, &poses, 1.0)?);
     let snug_static_m = radii(&predict(&mut snug_engine, &poses, 0.0)?);
     let skinned: Vec<Vec<Vec3>> = poses

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::geometry::Vec3;
 use crate::model::{
-    ClothNet, ClothNetConfig, DescriptorConfig, InferenceEngine, InferenceOptions, InferenceWeights,
+    ClothNet, ClothNetConfig, DescriptorConfig, InferenceEngine, InferenceOptions, ModelArtifact,
 };
 use crate::scene::config::SceneConfig;
 use crate::scene::{Pose, Scene};
@@ -49,8 +49,8 @@ pub struct Snapshot {
     pub run_secs: f64,
     /// Optimiser step.
     pub step: u64,
-    /// The weights.
-    pub weights: InferenceWeights,
+    /// The weights, with the settings they were trained with.
+    pub weights: ModelArtifact,
 }
 
 /// What a run produced.
@@ -70,8 +70,8 @@ pub struct RunOutcome {
     /// Weights at each requested fraction (in order; the final weights fill fractions the
     /// run did not reach).
     pub snapshots: Vec<Snapshot>,
-    /// Final weights.
-    pub weights: InferenceWeights,
+    /// Final weights, with the settings they were trained with.
+    pub weights: ModelArtifact,
     /// The final network (autodiff CPU device).
     pub model: ClothNet,
     /// True when a step went non-finite and the run stopped there.
@@ -313,25 +313,15 @@ pub fn interleaved_step_ms(
     result
 }
 
-/// An engine for `weights` on `scene` at `fps`: one thread, garment only (no body skinning).
-pub fn engine_for(
-    weights: &InferenceWeights,
-    scene: &Scene,
-    fps: f32,
-) -> Result<InferenceEngine, ReportError> {
+/// An engine for `model` on `scene` at the model's training rate: one thread, garment only
+/// (no body skinning).
+pub fn engine_for(model: &ModelArtifact, scene: &Scene) -> Result<InferenceEngine, ReportError> {
     let options = InferenceOptions {
         threads: 1,
         skin_body: false,
         ..Default::default()
     };
-    Ok(InferenceEngine::from_scene(
-        weights.clone(),
-        &scene.avatar,
-        &scene.garment,
-        &DescriptorConfig::default(),
-        fps,
-        options,
-    )?)
+    Ok(model.engine(&scene.avatar, &scene.garment, options)?)
 }
 
 /// Garment frames of `poses` (consecutive, at the engine's rate, from a reset state) at

@@ -228,7 +228,7 @@ pub fn run_settings(
         let poses = motion
             .map(|m| poses_at(m, v.fps, (v.fps as usize).max(10)))
             .unwrap_or_default();
-        engines.push((engine_for(&run.weights, &v.scene, v.fps)?, poses));
+        engines.push((engine_for(&run.weights, &v.scene)?, poses));
     }
     let mut inference: Vec<Vec<f64>> = vec![Vec::new(); n];
     for _ in 0..5 {

@@ -26,6 +26,29 @@ impl Default for GarmentOptions {
     }
 }
 
+impl GarmentOptions {
+    /// Smoothing passes of loose garments (a skirt should not follow a single leg).
+    pub const LOOSE_SMOOTHING_PASSES: usize = 30;
+
+    /// The options for a garment named `name`: [`Self::LOOSE_SMOOTHING_PASSES`] when the name
+    /// says it is loose (contains "skirt", "dress", "gown" or "robe", any case), the defaults
+    /// otherwise. The passes used end up in [`Garment::smoothing_passes`].
+    pub fn for_name(name: &str) -> Self {
+        let name = name.to_ascii_lowercase();
+        let loose = ["skirt", "dress", "gown", "robe"]
+            .iter()
+            .any(|k| name.contains(k));
+        Self {
+            smoothing_passes: if loose {
+                Self::LOOSE_SMOOTHING_PASSES
+            } else {
+                Self::default().smoothing_passes
+            },
+            ..Self::default()
+        }
+    }
+}
+
 /// A garment ready to be simulated on an avatar.
 #[derive(Clone, Debug)]
 pub struct Garment {
@@ -37,6 +60,10 @@ pub struct Garment {
     pub topology: Topology,
     /// Skin weights transferred from the body.
     pub skin: SkinWeights,
+    /// Laplacian smoothing passes the skin weights were smoothed with
+    /// ([`GarmentOptions::smoothing_passes`]): what a scene description must record to rebuild
+    /// the same garment.
+    pub smoothing_passes: usize,
     /// Vertices pinned to their skinned position (e.g. a waistband); may be empty.
     pub pinned: Vec<u32>,
     /// Vertices exempt from body collision (e.g. a collar inside the neck); may be empty.
@@ -103,6 +130,7 @@ impl Garment {
             mesh,
             topology,
             skin,
+            smoothing_passes: options.smoothing_passes,
             pinned: Vec::new(),
             no_collide: Vec::new(),
             warnings,

@@ -56,8 +56,9 @@ pub enum TrainEvent {
     Snapshot {
         /// Step of the weights.
         step: u64,
-        /// The weights, in the fast inference engine's layout.
-        weights: Arc<crate::model::InferenceWeights>,
+        /// The weights, in the fast inference engine's layout, with the descriptor settings
+        /// and frame rate they are trained with.
+        weights: Arc<crate::model::ModelArtifact>,
     },
     /// A checkpoint was written.
     Checkpoint {
@@ -121,8 +122,8 @@ pub trait Session: Send {
     fn validate(&mut self) -> Result<MetricRecord, String>;
     /// True when every weight is finite.
     fn weights_finite(&self) -> bool;
-    /// Current weights for the preview.
-    fn snapshot(&self) -> Result<crate::model::InferenceWeights, String>;
+    /// Current weights for the preview, with the settings needed to run them.
+    fn snapshot(&self) -> Result<crate::model::ModelArtifact, String>;
     /// Writes a checkpoint for `step` with `history`; returns its path.
     fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, String>;
     /// Restores the newest checkpoint; returns its step, or an error when none exists.

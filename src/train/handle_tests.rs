@@ -29,7 +29,7 @@ impl Session for Recording {
     fn weights_finite(&self) -> bool {
         true
     }
-    fn snapshot(&self) -> Result<crate::model::InferenceWeights, String> {
+    fn snapshot(&self) -> Result<crate::model::ModelArtifact, String> {
         Err("no weights".into())
     }
     fn checkpoint(&mut self, _: u64, _: &MetricHistory) -> Result<PathBuf, String> {

@@ -45,7 +45,7 @@ use crate::scene::config::{SceneConfig, Split};
 
 use data::Dataset;
 use handle::LoopConfig;
-use run_dir::{avatar_fingerprint, garment_fingerprint};
+use run_dir::{avatar_fingerprint, garment_fingerprint, garment_skin_fingerprint};
 use session::{NeuralSession, SessionParts};
 
 /// Errors of the train layer.
@@ -244,6 +244,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
             garment_fingerprint: garment_fingerprint(&garment),
             garment_name: garment.name.clone(),
             avatar_fingerprint: Some(avatar_fingerprint(&avatar)),
+            garment_skin_fingerprint: Some(garment_skin_fingerprint(&garment)),
         };
         write_meta(&run, &meta, &scene_config)?;
     }
@@ -252,6 +253,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         device,
         model: net,
         config: train.clone(),
+        descriptors: descriptors.clone(),
         terms,
         lbs,
         avatar,
@@ -437,6 +439,18 @@ fn open_for_resume(dir: &Path, scene: &Scene) -> Result<(RunDir, RunMeta), Train
         return Err(TrainError::Checkpoint(format!(
             "the run was trained on another avatar than '{}': {}",
             scene.avatar.name,
+            run.root.display()
+        )));
+    }
+    if meta
+        .garment_skin_fingerprint
+        .is_some_and(|f| f != garment_skin_fingerprint(garment))
+    {
+        return Err(TrainError::Checkpoint(format!(
+            "the run was trained on garment '{}' with other skin weights (smoothing passes) \
+             than the scene's ({} passes): {}",
+            meta.garment_name,
+            garment.smoothing_passes,
             run.root.display()
         )));
     }

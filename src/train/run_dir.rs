@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! RUN/run.json                  RunMeta: train + model + descriptor configs, fabric, effects,
-//!                               garment fingerprint
+//!                               garment, garment skin and avatar fingerprints
 //! RUN/scene.toml                the scene description (file paths absolute)
 //! RUN/metrics.json              the metric history up to the newest checkpoint
 //! RUN/latest.json               {"step": N} of the newest complete checkpoint
@@ -57,6 +57,11 @@ pub struct RunMeta {
     /// run whose avatar changed; `None` in runs written before it was recorded.
     #[serde(default)]
     pub avatar_fingerprint: Option<u64>,
+    /// Fingerprint of the garment's skin weights ([`garment_skin_fingerprint`]: what the
+    /// model's offsets are skinned with, set by the smoothing passes), to refuse a scene that
+    /// rebuilds the garment with other weights; `None` in runs written before it was recorded.
+    #[serde(default)]
+    pub garment_skin_fingerprint: Option<u64>,
 }
 
 /// Mutable state saved with each checkpoint.
@@ -92,6 +97,28 @@ pub fn garment_fingerprint(garment: &Garment) -> u64 {
     for f in &garment.mesh.faces {
         for i in f {
             eat(&i.to_le_bytes());
+        }
+    }
+    h
+}
+
+/// FNV-1a fingerprint of a garment's skin weights (joints and weights of every vertex) and
+/// the smoothing passes they were made with.
+pub fn garment_skin_fingerprint(garment: &Garment) -> u64 {
+    let mut h: u64 = 0xcbf29ce484222325;
+    let mut eat = |bytes: &[u8]| {
+        for b in bytes {
+            h ^= u64::from(*b);
+            h = h.wrapping_mul(0x100000001b3);
+        }
+    };
+    eat(&(garment.smoothing_passes as u64).to_le_bytes());
+    for (joints, weights) in garment.skin.joints.iter().zip(&garment.skin.weights) {
+        for j in joints {
+            eat(&j.to_le_bytes());
+        }
+        for w in weights {
+            eat(&w.to_le_bytes());
         }
     }
     h

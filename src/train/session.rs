@@ -19,7 +19,7 @@ use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 
 use crate::model::activity::{Activity, revive_dead_units, unit_activity};
-use crate::model::{ClothNet, GarmentLbs, InferenceWeights};
+use crate::model::{ClothNet, DescriptorConfig, GarmentLbs, InferenceWeights, ModelArtifact};
 use crate::physics::metrics::History;
 use crate::physics::{BodyBatch, ClothMetrics, Contacts, FabricParams, LossTerms, PhysicsTerms};
 use crate::scene::{Avatar, Garment};
@@ -45,6 +45,7 @@ pub struct NeuralSession {
     /// Factor of the learning-rate schedule on `learning_rate` (checkpoints keep the latter).
     schedule_factor: f64,
     config: TrainConfig,
+    descriptors: DescriptorConfig,
     terms: PhysicsTerms,
     lbs: GarmentLbs,
     avatar: Arc<Avatar>,
@@ -67,6 +68,8 @@ pub struct SessionParts {
     pub model: ClothNet,
     /// Training settings.
     pub config: TrainConfig,
+    /// Descriptor settings of the training data (travel with the weight snapshots).
+    pub descriptors: DescriptorConfig,
     /// Physics terms of the garment.
     pub terms: PhysicsTerms,
     /// Garment skinning.
@@ -97,6 +100,7 @@ impl NeuralSession {
             learning_rate: parts.config.learning_rate,
             schedule_factor: 1.0,
             config: parts.config,
+            descriptors: parts.descriptors,
             terms: parts.terms,
             lbs: parts.lbs,
             avatar: parts.avatar,
@@ -458,8 +462,13 @@ impl Session for NeuralSession {
             .unwrap_or(false)
     }
 
-    fn snapshot(&self) -> Result<InferenceWeights, String> {
-        InferenceWeights::from_module(&self.model).map_err(|e| e.to_string())
+    fn snapshot(&self) -> Result<ModelArtifact, String> {
+        let weights = InferenceWeights::from_module(&self.model).map_err(|e| e.to_string())?;
+        Ok(ModelArtifact::new(
+            weights,
+            self.descriptors.clone(),
+            self.config.fps,
+        ))
     }
 
     fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, String> {

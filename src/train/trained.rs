@@ -6,12 +6,14 @@ use std::path::Path;
 use burn::module::Module;
 use burn::tensor::Bytes;
 
-use crate::model::{ClothNet, InferenceEngine, InferenceOptions, InferenceWeights};
+use crate::model::{ClothNet, InferenceEngine, InferenceOptions, InferenceWeights, ModelArtifact};
 use crate::scene::Scene;
 
 use super::checkpoint::MODEL_FILE;
 use super::resume::recorded_scene;
-use super::run_dir::{RunDir, RunMeta, avatar_fingerprint, garment_fingerprint};
+use super::run_dir::{
+    RunDir, RunMeta, avatar_fingerprint, garment_fingerprint, garment_skin_fingerprint,
+};
 use super::{BackendKind, TrainError, device_for};
 
 /// A trained model ready to evaluate or bake.
@@ -22,8 +24,9 @@ pub struct TrainedModel {
     pub scene: Scene,
     /// The network on the CPU device (no autodiff).
     pub model: ClothNet,
-    /// The same weights for the fast inference engine.
-    pub weights: InferenceWeights,
+    /// The same weights for the fast inference engine, with the run's descriptor settings and
+    /// training frame rate.
+    pub artifact: ModelArtifact,
     /// Step of the loaded checkpoint.
     pub step: u64,
     /// The run directory.
@@ -34,20 +37,20 @@ pub struct TrainedModel {
 }
 
 impl TrainedModel {
-    /// A fresh inference engine of these weights on the run's own scene, at the training rate
-    /// with the run's descriptor settings, garment only (no body skinning).
+    /// A fresh inference engine of the trained model on the run's own scene (at the training
+    /// rate with the run's descriptor settings).
+    pub fn engine(&self, options: InferenceOptions) -> Result<InferenceEngine, TrainError> {
+        Ok(self
+            .artifact
+            .engine(&self.scene.avatar, &self.scene.garment, options)?)
+    }
+
+    /// [`Self::engine`] for the garment only (no body skinning).
     pub fn garment_engine(&self) -> Result<InferenceEngine, TrainError> {
-        Ok(InferenceEngine::from_scene(
-            self.weights.clone(),
-            &self.scene.avatar,
-            &self.scene.garment,
-            &self.meta.descriptors,
-            self.meta.train.fps,
-            InferenceOptions {
-                skin_body: false,
-                ..Default::default()
-            },
-        )?)
+        self.engine(InferenceOptions {
+            skin_body: false,
+            ..Default::default()
+        })
     }
 
     /// The posed body of every frame of `motion` when the run collides with the body (the
@@ -90,6 +93,28 @@ pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
     let meta = run.meta()?;
     let recorded = recorded_scene(&run)?;
     let scene = recorded.scene;
+    refuse_changed_scene(&meta, &scene, &root)?;
+    let device = device_for(BackendKind::Cpu, false);
+    let loaded = run
+        .newest_loadable(|step| load_model(&run, &meta, step, &device))?
+        .ok_or_else(|| TrainError::Checkpoint(format!("no checkpoint in {}", root.display())))?;
+    let (model, weights) = loaded.value;
+    let mut warnings = recorded.warnings;
+    warnings.extend(loaded.warnings);
+    Ok(TrainedModel {
+        scene,
+        artifact: ModelArtifact::new(weights, meta.descriptors.clone(), meta.train.fps),
+        meta,
+        model,
+        step: loaded.step,
+        run,
+        warnings,
+    })
+}
+
+/// Refuses a recorded scene that no longer rebuilds what the run was trained on: another
+/// garment, another avatar, or the garment with other skin weights (smoothing passes).
+fn refuse_changed_scene(meta: &RunMeta, scene: &Scene, root: &Path) -> Result<(), TrainError> {
     if garment_fingerprint(&scene.garment) != meta.garment_fingerprint {
         return Err(TrainError::Checkpoint(format!(
             "the garment changed since training: the scene's garment '{}' no longer matches \
@@ -111,22 +136,19 @@ pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
             root.display()
         )));
     }
-    let device = device_for(BackendKind::Cpu, false);
-    let loaded = run
-        .newest_loadable(|step| load_model(&run, &meta, step, &device))?
-        .ok_or_else(|| TrainError::Checkpoint(format!("no checkpoint in {}", root.display())))?;
-    let (model, weights) = loaded.value;
-    let mut warnings = recorded.warnings;
-    warnings.extend(loaded.warnings);
-    Ok(TrainedModel {
-        meta,
-        scene,
-        model,
-        weights,
-        step: loaded.step,
-        run,
-        warnings,
-    })
+    if meta
+        .garment_skin_fingerprint
+        .is_some_and(|f| f != garment_skin_fingerprint(&scene.garment))
+    {
+        return Err(TrainError::Checkpoint(format!(
+            "the garment's skin weights changed since training: the scene rebuilds '{}' with \
+             {} smoothing passes, not with the weights the run was trained on: {}",
+            scene.garment.name,
+            scene.garment.smoothing_passes,
+            root.display()
+        )));
+    }
+    Ok(())
 }
 
 /// The network of checkpoint `step`, and its weights in the inference layout.

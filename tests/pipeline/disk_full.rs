@@ -107,7 +107,7 @@ impl<S: Session> Session for RoomLater<S> {
     fn weights_finite(&self) -> bool {
         self.inner.weights_finite()
     }
-    fn snapshot(&self) -> Result<neural_cloth::model::InferenceWeights, String> {
+    fn snapshot(&self) -> Result<neural_cloth::model::ModelArtifact, String> {
         self.inner.snapshot()
     }
     fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, String> {
