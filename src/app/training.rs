@@ -189,11 +189,6 @@ impl TrainingControl {
         }
     }
 
-    /// Replaces the launcher.
-    pub fn set_launcher(&mut self, launcher: Box<dyn TrainerLauncher>) {
-        self.launcher = Some(launcher);
-    }
-
     /// Current state.
     pub fn state(&self) -> &TrainingState {
         &self.state

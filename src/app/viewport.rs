@@ -213,13 +213,6 @@ impl Viewport {
         self.rect
     }
 
-    /// Size in pixels of the texture the viewport last drew into.
-    pub fn target_size(&self) -> Option<[u32; 2]> {
-        let gpu = self.gpu.as_ref()?;
-        let shared = gpu.shared.lock().ok()?;
-        Some(shared.target.size())
-    }
-
     /// Frames the camera on `frame`'s body and garment and makes that the home view.
     pub fn frame_scene(&mut self, frame: &SceneFrame) {
         self.camera = crate::render::offscreen::default_camera(frame);

@@ -39,15 +39,6 @@ pub enum BakeFormat {
 }
 
 impl BakeFormat {
-    /// Every format, for menus.
-    pub const ALL: [BakeFormat; 5] = [
-        BakeFormat::Pc2,
-        BakeFormat::Mdd,
-        BakeFormat::Obj,
-        BakeFormat::Gltf,
-        BakeFormat::Usd,
-    ];
-
     /// The usual file extension (the OBJ sequence is a folder).
     pub fn extension(self) -> &'static str {
         match self {

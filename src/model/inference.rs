@@ -379,17 +379,6 @@ impl InferenceEngine {
         Ok(())
     }
 
-    /// Resets and steps through `poses` (consecutive frames at the engine's rate), leaving the
-    /// meshes of the last one: use it after a seek, feeding the window of poses before the
-    /// target frame so the GRU state is rebuilt.
-    pub fn replay(&mut self, poses: &[Pose], w: f32) -> Result<(), ModelError> {
-        self.reset();
-        for pose in poses {
-            self.step(pose, w)?;
-        }
-        Ok(())
-    }
-
     fn encode(&mut self, w: f32) {
         let weights = &self.net;
         let b = &mut self.bufs;

@@ -221,16 +221,6 @@ impl FabricParams {
     pub fn gravity(&self) -> crate::geometry::Vec3 {
         crate::geometry::Vec3::from(self.gravity_m_per_s2)
     }
-
-    /// A rough in-plane stiffness in N/m (the largest weight of the active model), used for
-    /// preconditioning and step-size estimates.
-    pub fn membrane_stiffness(&self) -> f32 {
-        match self.cloth_model {
-            ClothModel::MassSpring => self.stretch_stiffness,
-            ClothModel::BaraffWitkin => self.stretch_stiffness.max(self.shear_stiffness),
-            ClothModel::Stvk => self.lame_lambda + 2.0 * self.lame_mu,
-        }
-    }
 }
 
 #[cfg(test)]

@@ -217,17 +217,3 @@ pub fn read_f64<const D: usize>(t: Tensor<D>) -> Result<Vec<f64>, PhysicsError> 
     t.try_into_vec_as::<f64>()
         .map_err(|e| PhysicsError::Backend(e.to_string()))
 }
-
-/// Reads `[B, V, 3]` positions back as one `Vec<Vec3>` per sample.
-pub fn read_positions(t: Tensor<3>) -> Result<Vec<Vec<Vec3>>, PhysicsError> {
-    let [_, v, _] = t.dims();
-    let flat = read_f32(t)?;
-    Ok(flat
-        .chunks_exact(v * 3)
-        .map(|s| {
-            s.chunks_exact(3)
-                .map(|p| Vec3::new(p[0], p[1], p[2]))
-                .collect()
-        })
-        .collect())
-}

@@ -537,12 +537,4 @@ impl Renderer {
     pub fn buffer_allocations(&self) -> u64 {
         self.allocations
     }
-
-    /// Vertex counts of the uploaded body and garment (0 when absent), for tests and overlays.
-    pub fn uploaded_vertex_counts(&self) -> (usize, usize) {
-        (
-            self.body.as_ref().map_or(0, |m| m.vertex_count),
-            self.garment.as_ref().map_or(0, |m| m.vertex_count),
-        )
-    }
 }

@@ -120,11 +120,6 @@ impl RenderTarget {
         self.sample_count
     }
 
-    /// The resolved colour texture (what is shown or read back).
-    pub fn color_texture(&self) -> &wgpu::Texture {
-        &self.color
-    }
-
     /// A view of the resolved colour texture, for `register_native_texture`.
     pub fn color_view(&self) -> &wgpu::TextureView {
         &self.color_view

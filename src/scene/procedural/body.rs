@@ -348,14 +348,6 @@ impl BodySdf {
         })
     }
 
-    /// Per-part signed distances at `p` for a point on the left side or centre (`p.x >= 0`).
-    pub fn part_distances(&self, p: &Vec3) -> Vec<f32> {
-        self.parts
-            .iter()
-            .map(|part| part.shape.distance(p))
-            .collect()
-    }
-
     /// Axis-aligned bounds of the left half (`x >= 0`) of the body, padded by `pad_m`.
     pub fn half_bounds(&self, pad_m: f32) -> (Vec3, Vec3) {
         let mut lo = Vec3::repeat(f32::INFINITY);
