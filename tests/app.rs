@@ -34,6 +34,7 @@ use neural_cloth::app::{
 };
 use neural_cloth::model::ModelArtifact;
 use neural_cloth::physics::FabricParams;
+use neural_cloth::train::TrainError;
 use neural_cloth::train::handle::{LoopConfig, Session, TrainerHandle};
 use neural_cloth::train::metrics::MetricHistory;
 
@@ -404,7 +405,7 @@ struct FakeSession {
 }
 
 impl Session for FakeSession {
-    fn step(&mut self) -> Result<MetricRecord, String> {
+    fn step(&mut self) -> Result<MetricRecord, TrainError> {
         self.steps += 1;
         std::thread::sleep(Duration::from_millis(2));
         let s = self.steps as f64;
@@ -418,29 +419,29 @@ impl Session for FakeSession {
             ..Default::default()
         })
     }
-    fn validate(&mut self) -> Result<MetricRecord, String> {
+    fn validate(&mut self) -> Result<MetricRecord, TrainError> {
         self.step()
     }
     fn weights_finite(&self) -> bool {
         true
     }
-    fn snapshot(&self) -> Result<ModelArtifact, String> {
-        Err("no network in the fake session".into())
+    fn snapshot(&self) -> Result<ModelArtifact, TrainError> {
+        Err(TrainError::Data("no network in the fake session".into()))
     }
-    fn checkpoint(&mut self, step: u64, _history: &MetricHistory) -> Result<PathBuf, String> {
+    fn checkpoint(&mut self, step: u64, _history: &MetricHistory) -> Result<PathBuf, TrainError> {
         Ok(PathBuf::from(format!("fake-checkpoint-{step}")))
     }
-    fn restore_last_checkpoint(&mut self) -> Result<u64, String> {
-        Err("none".into())
+    fn restore_last_checkpoint(&mut self) -> Result<u64, TrainError> {
+        Err(TrainError::NoCheckpointYet)
     }
     fn learning_rate(&self) -> f64 {
         1e-3
     }
     fn set_learning_rate(&mut self, _lr: f64) {}
-    fn set_fabric(&mut self, _fabric: FabricParams) -> Result<(), String> {
+    fn set_fabric(&mut self, _fabric: FabricParams) -> Result<(), TrainError> {
         Ok(())
     }
-    fn set_window(&mut self, _window_secs: f32) -> Result<(), String> {
+    fn set_window(&mut self, _window_secs: f32) -> Result<(), TrainError> {
         Ok(())
     }
 }

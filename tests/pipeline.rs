@@ -19,7 +19,8 @@ use neural_cloth::train::handle::{LoopConfig, Session};
 use neural_cloth::train::losses::inertia_through_past;
 use neural_cloth::train::metrics::{MetricHistory, MetricRecord};
 use neural_cloth::train::{
-    RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer, TrainerHandle, load_trained, prepare,
+    RunLocation, TrainConfig, TrainError, TrainEvent, TrainSetup, Trainer, TrainerHandle,
+    load_trained, prepare,
 };
 
 // Crash safety (kill, damaged files, full disk) and resuming: `pipeline/*.rs`.
@@ -286,7 +287,7 @@ struct Poisoned<S: Session> {
 }
 
 impl<S: Session> Session for Poisoned<S> {
-    fn step(&mut self) -> Result<MetricRecord, String> {
+    fn step(&mut self) -> Result<MetricRecord, TrainError> {
         self.calls += 1;
         let mut r = self.inner.step()?;
         if self.calls == self.poison_at {
@@ -294,19 +295,19 @@ impl<S: Session> Session for Poisoned<S> {
         }
         Ok(r)
     }
-    fn validate(&mut self) -> Result<MetricRecord, String> {
+    fn validate(&mut self) -> Result<MetricRecord, TrainError> {
         self.inner.validate()
     }
     fn weights_finite(&self) -> bool {
         self.inner.weights_finite()
     }
-    fn snapshot(&self) -> Result<neural_cloth::model::ModelArtifact, String> {
+    fn snapshot(&self) -> Result<neural_cloth::model::ModelArtifact, TrainError> {
         self.inner.snapshot()
     }
-    fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, String> {
+    fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, TrainError> {
         self.inner.checkpoint(step, history)
     }
-    fn restore_last_checkpoint(&mut self) -> Result<u64, String> {
+    fn restore_last_checkpoint(&mut self) -> Result<u64, TrainError> {
         self.inner.restore_last_checkpoint()
     }
     fn learning_rate(&self) -> f64 {
@@ -315,16 +316,16 @@ impl<S: Session> Session for Poisoned<S> {
     fn set_learning_rate(&mut self, lr: f64) {
         self.inner.set_learning_rate(lr)
     }
-    fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), String> {
+    fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), TrainError> {
         self.inner.set_fabric(fabric)
     }
-    fn set_window(&mut self, window_secs: f32) -> Result<(), String> {
+    fn set_window(&mut self, window_secs: f32) -> Result<(), TrainError> {
         self.inner.set_window(window_secs)
     }
     fn activity_summary(&self) -> Option<String> {
         self.inner.activity_summary()
     }
-    fn revive_dead_units(&mut self) -> Result<usize, String> {
+    fn revive_dead_units(&mut self) -> Result<usize, TrainError> {
         self.inner.revive_dead_units()
     }
 }

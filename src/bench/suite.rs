@@ -126,7 +126,7 @@ pub fn bench_training(
     let mut times = Vec::new();
     for k in 0..steps + 2 {
         let start = Instant::now();
-        session.step()?;
+        session.step().map_err(|e| e.to_string())?;
         if k >= 2 {
             times.push(start.elapsed().as_secs_f64() * 1e3);
         }

@@ -15,7 +15,9 @@ use crate::model::{
 use crate::scene::config::SceneConfig;
 use crate::scene::{Pose, Scene};
 use crate::train::handle::Session;
-use crate::train::{MetricHistory, MetricRecord, RunLocation, TrainConfig, TrainSetup, prepare};
+use crate::train::{
+    MetricHistory, MetricRecord, RunLocation, TrainConfig, TrainError, TrainSetup, prepare,
+};
 
 use super::ReportError;
 
@@ -160,9 +162,9 @@ fn train_in(
         validations,
         mut snapshot_fractions,
     } = spec;
-    let run_err = |reason: String| ReportError::Run {
+    let run_err = |e: TrainError| ReportError::Run {
         label: label.clone(),
-        reason,
+        reason: e.to_string(),
     };
     let budget = budget_secs.max(0.0);
     let setup = TrainSetup {
@@ -265,9 +267,9 @@ pub fn interleaved_step_ms(
     let result = (|| {
         let mut sessions = Vec::with_capacity(specs.len());
         for (k, (spec, dir)) in specs.iter().zip(&dirs).enumerate() {
-            let run_err = |reason: String| ReportError::Run {
+            let run_err = |e: TrainError| ReportError::Run {
                 label: spec.label.clone(),
-                reason,
+                reason: e.to_string(),
             };
             let _ = std::fs::remove_dir_all(dir);
             let setup = TrainSetup {
@@ -294,9 +296,9 @@ pub fn interleaved_step_ms(
             for ((session, spec), t) in sessions.iter_mut().zip(specs).zip(times.iter_mut()) {
                 for _ in 0..steps.max(1) {
                     let started = Instant::now();
-                    session.step().map_err(|reason| ReportError::Run {
+                    session.step().map_err(|e| ReportError::Run {
                         label: spec.label.clone(),
-                        reason,
+                        reason: e.to_string(),
                     })?;
                     t.push(started.elapsed().as_secs_f64() * 1e3);
                 }

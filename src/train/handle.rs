@@ -15,6 +15,7 @@ use std::time::{Duration, Instant};
 
 use crate::physics::FabricParams;
 
+use super::TrainError;
 use super::metrics::{MetricHistory, MetricRecord};
 
 /// Capacity of the command channel.
@@ -117,17 +118,17 @@ pub struct RunSummary {
 /// The work the loop drives; implemented by the real trainer and by test doubles.
 pub trait Session: Send {
     /// One optimiser step; returns its metrics (step and wall time are filled in by the loop).
-    fn step(&mut self) -> Result<MetricRecord, String>;
+    fn step(&mut self) -> Result<MetricRecord, TrainError>;
     /// Metrics on the validation split.
-    fn validate(&mut self) -> Result<MetricRecord, String>;
+    fn validate(&mut self) -> Result<MetricRecord, TrainError>;
     /// True when every weight is finite.
     fn weights_finite(&self) -> bool;
     /// Current weights for the preview, with the settings needed to run them.
-    fn snapshot(&self) -> Result<crate::model::ModelArtifact, String>;
+    fn snapshot(&self) -> Result<crate::model::ModelArtifact, TrainError>;
     /// Writes a checkpoint for `step` with `history`; returns its path.
-    fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, String>;
+    fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, TrainError>;
     /// Restores the newest checkpoint; returns its step, or an error when none exists.
-    fn restore_last_checkpoint(&mut self) -> Result<u64, String>;
+    fn restore_last_checkpoint(&mut self) -> Result<u64, TrainError>;
     /// Current learning rate.
     fn learning_rate(&self) -> f64;
     /// Sets the learning rate.
@@ -136,15 +137,15 @@ pub trait Session: Send {
     /// set; see [`super::config::lr_schedule_factor`]). Sessions without a schedule ignore it.
     fn set_schedule_factor(&mut self, _factor: f64) {}
     /// Applies new fabric parameters.
-    fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), String>;
+    fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), TrainError>;
     /// Applies a new window length in seconds.
-    fn set_window(&mut self, window_secs: f32) -> Result<(), String>;
+    fn set_window(&mut self, window_secs: f32) -> Result<(), TrainError>;
     /// Per-layer dead units of the last validation pass, in words (`None` when not measured).
     fn activity_summary(&self) -> Option<String> {
         None
     }
     /// Re-initialises dead units without changing the network's output; returns how many.
-    fn revive_dead_units(&mut self) -> Result<usize, String> {
+    fn revive_dead_units(&mut self) -> Result<usize, TrainError> {
         Ok(0)
     }
 }
@@ -240,7 +241,7 @@ impl TrainerHandle {
     ) -> std::io::Result<Self>
     where
         S: Session + 'static,
-        F: FnOnce() -> Result<(S, LoopConfig), String> + Send + 'static,
+        F: FnOnce() -> Result<(S, LoopConfig), TrainError> + Send + 'static,
     {
         let (cmd_tx, cmd_rx) = std::sync::mpsc::sync_channel(COMMAND_CAPACITY);
         let (ev_tx, ev_rx) = std::sync::mpsc::sync_channel(EVENT_CAPACITY);
@@ -253,7 +254,7 @@ impl TrainerHandle {
                 let result = prepare().and_then(|(mut session, config)| {
                     run_loop(&mut session, config, &cmd_rx, &stop_flag, &emit)
                 });
-                emit.send(TrainEvent::Finished(result));
+                emit.send(TrainEvent::Finished(result.map_err(|e| e.to_string())));
             })?;
         Ok(Self {
             commands: cmd_tx,
@@ -341,7 +342,7 @@ impl Emitter {
 
 /// The remedy for a stalled run: revive dead units (function-preserving); when none are dead,
 /// halve the learning rate. Returns what was done, in words.
-fn remedy_stall<S: Session>(session: &mut S) -> Result<String, String> {
+fn remedy_stall<S: Session>(session: &mut S) -> Result<String, TrainError> {
     let layers = session.activity_summary().unwrap_or_default();
     let revived = session.revive_dead_units()?;
     if revived > 0 {
@@ -383,7 +384,7 @@ fn run_loop<S: Session>(
     commands: &Receiver<TrainCommand>,
     stop: &AtomicBool,
     emit: &Emitter,
-) -> Result<RunSummary, String> {
+) -> Result<RunSummary, TrainError> {
     let mut history = config.history;
     let mut step = config.start_step;
     let mut rollbacks = 0u32;
@@ -474,13 +475,15 @@ fn run_loop<S: Session>(
                 // Divergence (or a failed step): go back to the last good weights, lower the rate.
                 rollbacks += 1;
                 if rollbacks > config.max_rollbacks {
-                    return Err(format!(
-                        "training diverged {rollbacks} times; last at step {step}"
-                    ));
+                    return Err(TrainError::Diverged { rollbacks, step });
                 }
-                let restored = session
-                    .restore_last_checkpoint()
-                    .map_err(|e| format!("diverged at step {step} and could not roll back: {e}"))?;
+                let restored =
+                    session
+                        .restore_last_checkpoint()
+                        .map_err(|e| TrainError::RollbackFailed {
+                            step,
+                            source: Box::new(e),
+                        })?;
                 let lr = session.learning_rate() * 0.5;
                 session.set_learning_rate(lr);
                 history.truncate_after(restored);
@@ -544,7 +547,10 @@ fn run_loop<S: Session>(
     }
     let path = session
         .checkpoint(step, &history)
-        .map_err(|e| format!("the final checkpoint (step {step}) could not be written: {e}"))?;
+        .map_err(|e| TrainError::FinalCheckpoint {
+            step,
+            source: Box::new(e),
+        })?;
     emit.send(TrainEvent::Checkpoint { step, path });
     Ok(RunSummary {
         run_dir: config.run_dir,

@@ -11,7 +11,7 @@ struct Recording {
 }
 
 impl Session for Recording {
-    fn step(&mut self) -> Result<MetricRecord, String> {
+    fn step(&mut self) -> Result<MetricRecord, TrainError> {
         if let Ok(mut f) = self.factors.lock() {
             f.push(self.factor);
         }
@@ -20,7 +20,7 @@ impl Session for Recording {
             ..Default::default()
         })
     }
-    fn validate(&mut self) -> Result<MetricRecord, String> {
+    fn validate(&mut self) -> Result<MetricRecord, TrainError> {
         Ok(MetricRecord {
             loss: 1.0,
             ..Default::default()
@@ -29,14 +29,14 @@ impl Session for Recording {
     fn weights_finite(&self) -> bool {
         true
     }
-    fn snapshot(&self) -> Result<crate::model::ModelArtifact, String> {
-        Err("no weights".into())
+    fn snapshot(&self) -> Result<crate::model::ModelArtifact, TrainError> {
+        Err(TrainError::Data("no weights".into()))
     }
-    fn checkpoint(&mut self, _: u64, _: &MetricHistory) -> Result<PathBuf, String> {
-        Err("no checkpoints".into())
+    fn checkpoint(&mut self, _: u64, _: &MetricHistory) -> Result<PathBuf, TrainError> {
+        Err(TrainError::NoCheckpointYet)
     }
-    fn restore_last_checkpoint(&mut self) -> Result<u64, String> {
-        Err("no checkpoints".into())
+    fn restore_last_checkpoint(&mut self) -> Result<u64, TrainError> {
+        Err(TrainError::NoCheckpointYet)
     }
     fn learning_rate(&self) -> f64 {
         1e-3
@@ -45,10 +45,10 @@ impl Session for Recording {
     fn set_schedule_factor(&mut self, factor: f64) {
         self.factor = factor;
     }
-    fn set_fabric(&mut self, _: FabricParams) -> Result<(), String> {
+    fn set_fabric(&mut self, _: FabricParams) -> Result<(), TrainError> {
         Ok(())
     }
-    fn set_window(&mut self, _: f32) -> Result<(), String> {
+    fn set_window(&mut self, _: f32) -> Result<(), TrainError> {
         Ok(())
     }
 }

@@ -95,6 +95,41 @@ pub enum TrainError {
         /// The path concerned.
         path: PathBuf,
     },
+    /// The network or optimiser state could not be turned into bytes.
+    #[error(transparent)]
+    Record(#[from] burn::store::RecordError),
+    /// The motions hold no window to validate on.
+    #[error("no validation frames")]
+    NoValidationFrames,
+    /// A rollback found no checkpoint to go back to.
+    #[error("no checkpoint written yet")]
+    NoCheckpointYet,
+    /// Training diverged more often than allowed.
+    #[error("training diverged {rollbacks} times; last at step {step}")]
+    Diverged {
+        /// Rollbacks so far, this one included.
+        rollbacks: u32,
+        /// Step of the last divergence.
+        step: u64,
+    },
+    /// Training diverged and going back to the last checkpoint failed.
+    #[error("diverged at step {step} and could not roll back: {source}")]
+    RollbackFailed {
+        /// Step of the divergence.
+        step: u64,
+        /// Why the rollback failed.
+        #[source]
+        source: Box<TrainError>,
+    },
+    /// The checkpoint at the end of the run could not be written.
+    #[error("the final checkpoint (step {step}) could not be written: {source}")]
+    FinalCheckpoint {
+        /// Step of the checkpoint.
+        step: u64,
+        /// Why it could not be written.
+        #[source]
+        source: Box<TrainError>,
+    },
 }
 
 impl TrainError {
@@ -151,7 +186,7 @@ impl Trainer {
         notify: Option<Arc<dyn Fn() + Send + Sync>>,
     ) -> Result<TrainerHandle, TrainError> {
         setup.train.validate()?;
-        TrainerHandle::spawn_with(move || prepare(setup).map_err(|e| e.to_string()), notify)
+        TrainerHandle::spawn_with(move || prepare(setup), notify)
             .map_err(|e| TrainError::io(e, Path::new("trainer thread")))
     }
 }

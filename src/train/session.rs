@@ -229,20 +229,13 @@ impl NeuralSession {
         data: &Dataset,
         batch: &Batch,
         x_t: &Tensor<3>,
-    ) -> Result<(Option<Contacts>, LossTerms), String> {
-        let bodies = self.bodies(data, batch).map_err(|e| e.to_string())?;
+    ) -> Result<(Option<Contacts>, LossTerms), TrainError> {
+        let bodies = self.bodies(data, batch)?;
         let contacts = match &bodies {
-            Some(bodies) => Some(
-                self.terms
-                    .contacts(x_t, bodies)
-                    .map_err(|e| e.to_string())?,
-            ),
+            Some(bodies) => Some(self.terms.contacts(x_t, bodies)?),
             None => None,
         };
-        let mut losses = self
-            .terms
-            .static_losses_with(x_t, contacts.as_ref())
-            .map_err(|e| e.to_string())?;
+        let mut losses = self.terms.static_losses_with(x_t, contacts.as_ref())?;
         if let Some(pinning) = self
             .pin_target(batch)
             .and_then(|target| self.terms.pinning(x_t, &target))
@@ -285,9 +278,9 @@ impl NeuralSession {
     }
 
     /// Per-layer unit activity of the network on the probe windows.
-    fn activity(&self) -> Result<Activity, String> {
+    fn activity(&self) -> Result<Activity, TrainError> {
         let (statics, dynamics) = self.probe_descriptors();
-        unit_activity(&self.model, statics, dynamics).map_err(|e| e.to_string())
+        Ok(unit_activity(&self.model, statics, dynamics)?)
     }
 
     fn record(&self, metrics: &ClothMetrics, loss: f64) -> MetricRecord {
@@ -317,7 +310,7 @@ fn frame(x: &Tensor<4>, k: usize) -> Tensor<3> {
 }
 
 impl Session for NeuralSession {
-    fn step(&mut self) -> Result<MetricRecord, String> {
+    fn step(&mut self) -> Result<MetricRecord, TrainError> {
         let b = self.config.batch_size;
         let windows = self.train.sample_windows(b, &mut self.rng);
         let augment = if self.terms.effects().dynamics && b >= 2 {
@@ -386,12 +379,11 @@ impl Session for NeuralSession {
         });
         let metrics = self
             .terms
-            .metrics(&head(&x_t), contacts.as_ref(), Some(&history))
-            .map_err(|e| e.to_string())?;
+            .metrics(&head(&x_t), contacts.as_ref(), Some(&history))?;
         Ok(self.record(&metrics, loss))
     }
 
-    fn validate(&mut self) -> Result<MetricRecord, String> {
+    fn validate(&mut self) -> Result<MetricRecord, TrainError> {
         let data = if self.validation.is_empty() {
             &self.train
         } else {
@@ -399,7 +391,7 @@ impl Session for NeuralSession {
         };
         let windows = data.even_windows(VALIDATION_WINDOWS);
         if windows.is_empty() {
-            return Err("no validation frames".into());
+            return Err(TrainError::NoValidationFrames);
         }
         let batch = data.batch(&windows, self.window_frames(), &self.garment.skin);
         let x = self.predict(&batch, 0, 0).detach();
@@ -427,8 +419,7 @@ impl Session for NeuralSession {
         };
         let metrics = self
             .terms
-            .metrics(&x_t, contacts.as_ref(), Some(&history))
-            .map_err(|e| e.to_string())?;
+            .metrics(&x_t, contacts.as_ref(), Some(&history))?;
         let activity = self.activity()?;
         let mut record = self.record(&metrics, loss);
         record.dead_units_pct = activity.worst_revivable_pct();
@@ -440,7 +431,7 @@ impl Session for NeuralSession {
         self.activity.as_ref().map(Activity::summary)
     }
 
-    fn revive_dead_units(&mut self) -> Result<usize, String> {
+    fn revive_dead_units(&mut self) -> Result<usize, TrainError> {
         let (statics, dynamics) = self.probe_descriptors();
         let [b, t, j, c] = statics.dims();
         let flat = statics.clone().detach().reshape([b * t, j * c]);
@@ -451,8 +442,7 @@ impl Session for NeuralSession {
             flat,
             z.reshape([b * t, latent]),
             self.init_std,
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         Ok(revived.iter().sum())
     }
 
@@ -462,8 +452,8 @@ impl Session for NeuralSession {
             .unwrap_or(false)
     }
 
-    fn snapshot(&self) -> Result<ModelArtifact, String> {
-        let weights = InferenceWeights::from_module(&self.model).map_err(|e| e.to_string())?;
+    fn snapshot(&self) -> Result<ModelArtifact, TrainError> {
+        let weights = InferenceWeights::from_module(&self.model)?;
         Ok(ModelArtifact::new(
             weights,
             self.descriptors.clone(),
@@ -471,26 +461,20 @@ impl Session for NeuralSession {
         ))
     }
 
-    fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, String> {
-        let model_bytes = self
-            .model
-            .clone()
-            .into_record()
-            .into_bytes()
-            .map_err(|e| e.to_string())?;
-        let optim_bytes = self.optim.into_bytes().map_err(|e| e.to_string())?;
+    fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, TrainError> {
+        let model_bytes = self.model.clone().into_record().into_bytes()?;
+        let optim_bytes = self.optim.into_bytes()?;
         let state = CheckpointState {
             step,
             learning_rate: self.learning_rate,
         };
         self.run
             .write_checkpoint(state, &model_bytes, &optim_bytes, history)
-            .map_err(|e| e.to_string())
     }
 
-    fn restore_last_checkpoint(&mut self) -> Result<u64, String> {
-        let step = self.run.latest_step().ok_or("no checkpoint written yet")?;
-        self.load_checkpoint(step).map_err(|e| e.to_string())?;
+    fn restore_last_checkpoint(&mut self) -> Result<u64, TrainError> {
+        let step = self.run.latest_step().ok_or(TrainError::NoCheckpointYet)?;
+        self.load_checkpoint(step)?;
         Ok(step)
     }
 
@@ -506,20 +490,19 @@ impl Session for NeuralSession {
         self.schedule_factor = factor;
     }
 
-    fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), String> {
+    fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), TrainError> {
         let effects = *self.terms.effects();
-        self.terms = PhysicsTerms::new(&self.garment, &fabric, &effects, &self.device)
-            .map_err(|e| e.to_string())?
+        self.terms = PhysicsTerms::new(&self.garment, &fabric, &effects, &self.device)?
             .with_fused(self.config.fused_physics);
         Ok(())
     }
 
-    fn set_window(&mut self, window_secs: f32) -> Result<(), String> {
+    fn set_window(&mut self, window_secs: f32) -> Result<(), TrainError> {
         let next = TrainConfig {
             window_secs,
             ..self.config.clone()
         };
-        next.validate().map_err(|e| e.to_string())?;
+        next.validate()?;
         self.config = next;
         Ok(())
     }

@@ -11,7 +11,9 @@ use std::sync::{Arc, Mutex};
 use neural_cloth::physics::FabricParams;
 use neural_cloth::train::handle::Session;
 use neural_cloth::train::metrics::{MetricHistory, MetricRecord};
-use neural_cloth::train::{RunDir, RunLocation, TrainConfig, TrainEvent, TrainerHandle, prepare};
+use neural_cloth::train::{
+    RunDir, RunLocation, TrainConfig, TrainError, TrainEvent, TrainerHandle, prepare,
+};
 
 use super::fixture::{copy_dir, small_run, snapshot, temporaries, verified_steps};
 
@@ -92,7 +94,7 @@ struct RoomLater<S: Session> {
 }
 
 impl<S: Session> Session for RoomLater<S> {
-    fn step(&mut self) -> Result<MetricRecord, String> {
+    fn step(&mut self) -> Result<MetricRecord, TrainError> {
         self.calls += 1;
         if self.calls == self.free_at {
             let steps = RunDir::open(&self.run).unwrap().checkpoint_steps();
@@ -101,19 +103,19 @@ impl<S: Session> Session for RoomLater<S> {
         }
         self.inner.step()
     }
-    fn validate(&mut self) -> Result<MetricRecord, String> {
+    fn validate(&mut self) -> Result<MetricRecord, TrainError> {
         self.inner.validate()
     }
     fn weights_finite(&self) -> bool {
         self.inner.weights_finite()
     }
-    fn snapshot(&self) -> Result<neural_cloth::model::ModelArtifact, String> {
+    fn snapshot(&self) -> Result<neural_cloth::model::ModelArtifact, TrainError> {
         self.inner.snapshot()
     }
-    fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, String> {
+    fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, TrainError> {
         self.inner.checkpoint(step, history)
     }
-    fn restore_last_checkpoint(&mut self) -> Result<u64, String> {
+    fn restore_last_checkpoint(&mut self) -> Result<u64, TrainError> {
         self.inner.restore_last_checkpoint()
     }
     fn learning_rate(&self) -> f64 {
@@ -122,10 +124,10 @@ impl<S: Session> Session for RoomLater<S> {
     fn set_learning_rate(&mut self, lr: f64) {
         self.inner.set_learning_rate(lr)
     }
-    fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), String> {
+    fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), TrainError> {
         self.inner.set_fabric(fabric)
     }
-    fn set_window(&mut self, window_secs: f32) -> Result<(), String> {
+    fn set_window(&mut self, window_secs: f32) -> Result<(), TrainError> {
         self.inner.set_window(window_secs)
     }
 }
