@@ -114,6 +114,13 @@ pub struct TrainArgs {
     /// default: measured harmful, see docs/TRAINING.md)
     #[arg(long)]
     pub scale_dynamic_input: bool,
+    /// Give the dynamic code its own zero-initialised linear path to the offsets, true or
+    /// false (default: the model's default; see docs/TRAINING.md)
+    #[arg(long)]
+    pub dynamic_basis: Option<bool>,
+    /// Learning-rate factor of the dynamic basis, in (0, 1] (default 1/512)
+    #[arg(long)]
+    pub dynamic_basis_lr_scale: Option<f64>,
     /// Fraction of each batch given another sample's dynamic code, trained with the static
     /// losses only (the paper's motion augmentation), 0..=0.9 (default 0.2)
     #[arg(long)]
@@ -360,6 +367,12 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     model.basis_bias = !args.no_basis_bias;
     model.normalise_dynamic_input = args.scale_dynamic_input;
+    if let Some(on) = args.dynamic_basis {
+        model.dynamic_basis = on;
+    }
+    if let Some(s) = args.dynamic_basis_lr_scale {
+        model.dynamic_basis_lr_scale = s;
+    }
     if args.no_centre_init {
         train.centre_init = false;
     }

@@ -86,6 +86,9 @@ pub struct CompiledNet {
     pub basis: Matrix,
     /// Per-value bias of the basis `[V * 3]` (the learned mean offset), when the network has one.
     pub basis_bias: Option<Vec<f32>>,
+    /// The last rows of the basis that take `w z_D` (0 or the latent size; see
+    /// [`InferenceWeights::dynamic_basis_rows`]).
+    pub dynamic_basis_rows: usize,
 }
 
 fn dense_all(layers: Vec<DenseWeights>, precision: Precision) -> Vec<Dense> {
@@ -119,6 +122,7 @@ impl CompiledNet {
                 basis,
             ),
             basis_bias: weights.basis.bias,
+            dynamic_basis_rows: weights.dynamic_basis_rows,
         }
     }
 

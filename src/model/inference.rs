@@ -373,7 +373,7 @@ impl InferenceEngine {
         }
         self.stream.push(pose)?;
         self.encode(w);
-        self.decode();
+        self.decode(w);
         self.pose_garment();
         self.pose_body();
         Ok(())
@@ -438,10 +438,20 @@ impl InferenceEngine {
         }
     }
 
-    /// Decoder MLP: `z` -> basis coefficients `h`.
-    fn decode(&mut self) {
+    /// Decoder MLP: `z` -> basis coefficients `h`, followed by `w z_D` for the rows of a
+    /// dynamic basis.
+    fn decode(&mut self, w: f32) {
         let b = &mut self.bufs;
-        relu_chain_into(&self.net.decoder_layers, &b.z, &mut b.a, &mut b.b, &mut b.h);
+        let d = b.h.len() - self.net.dynamic_basis_rows;
+        let (h, dynamic) = b.h.split_at_mut(d);
+        relu_chain_into(&self.net.decoder_layers, &b.z, &mut b.a, &mut b.b, h);
+        if self.dynamic_skipped || w == 0.0 {
+            dynamic.fill(0.0);
+        } else {
+            for (out, z_d) in dynamic.iter_mut().zip(&self.hidden) {
+                *out = w * z_d;
+            }
+        }
     }
 
     /// Basis product, template addition and garment skinning, fused per chunk of vertices.

@@ -102,6 +102,24 @@ pub struct ClothNetConfig {
     /// starts; default false (see there why).
     #[serde(default)]
     pub normalise_dynamic_input: bool,
+    /// Give the dynamic code its own linear path to the offsets: `B h(z_S + w z_D) + w B_D
+    /// z_D`, with `B_D` (`[latent, V * 3]`) starting at zero and learning at the rate set by
+    /// [`ClothNetConfig::dynamic_basis_lr_scale`]. The shared decoder alone, fitted to the static
+    /// drape first, leaves the dynamic code almost without effect (docs/TRAINING.md, round 3:
+    /// w = 1 and w = 0 differ by 0.3 mm where the simulator swings 24 mm); the direct path
+    /// gives every dynamic code a gradient to the offsets from the first step. Exported
+    /// weights append `B_D` to the basis rows (basis input `[h, w z_D]`). Disentangled
+    /// encoder only; default false (runs saved before it existed read false).
+    #[serde(default)]
+    pub dynamic_basis: bool,
+    /// Learning-rate factor of the dynamic basis, in (0, 1] (stored as `B̂_D` with `B_D =
+    /// s_D·B̂_D`, as the basis); default [`DEFAULT_BASIS_LR_SCALE`].
+    #[serde(default = "default_basis_lr_scale")]
+    pub dynamic_basis_lr_scale: f64,
+}
+
+fn default_basis_lr_scale() -> f64 {
+    DEFAULT_BASIS_LR_SCALE
 }
 
 fn unit_scale() -> f64 {
@@ -130,6 +148,8 @@ impl Default for ClothNetConfig {
             basis_bias_lr_scale: DEFAULT_BASIS_BIAS_LR_SCALE,
             dynamic_input_scale: Vec::new(),
             normalise_dynamic_input: false,
+            dynamic_basis: false,
+            dynamic_basis_lr_scale: DEFAULT_BASIS_LR_SCALE,
         }
     }
 }
@@ -170,6 +190,15 @@ impl ClothNetConfig {
             return Err(ModelError::InvalidConfig(format!(
                 "basis_lr_scale {} is outside (0, 1]",
                 self.basis_lr_scale
+            )));
+        }
+        if !(self.dynamic_basis_lr_scale.is_finite()
+            && self.dynamic_basis_lr_scale > 0.0
+            && self.dynamic_basis_lr_scale <= 1.0)
+        {
+            return Err(ModelError::InvalidConfig(format!(
+                "dynamic_basis_lr_scale {} is outside (0, 1]",
+                self.dynamic_basis_lr_scale
             )));
         }
         if !(self.basis_bias_lr_scale.is_finite()
@@ -286,6 +315,17 @@ impl ClothNetConfig {
                 )
             }),
         };
+        // The dynamic basis starts at zero: the network's first output is unchanged.
+        let dynamic_basis =
+            (self.dynamic_basis && self.encoder == EncoderKind::Disentangled).then(|| Linear {
+                weight: Initializer::Zeros.init_with(
+                    [self.latent, vertices * 3],
+                    Some(self.latent),
+                    Some(vertices * 3),
+                    device,
+                ),
+                bias: None,
+            });
         Ok(ClothNet {
             static_encoder,
             dynamic_encoder,
@@ -293,6 +333,8 @@ impl ClothNetConfig {
             decoder: Decoder {
                 mlp: decoder_mlp,
                 basis,
+                dynamic_basis,
+                dynamic_scale: self.dynamic_basis_lr_scale,
                 basis_scale: self.basis_lr_scale,
                 bias_scale: self.basis_bias_lr_scale,
             },
@@ -364,6 +406,12 @@ pub struct Decoder {
     pub mlp: Mlp,
     /// Bias-free basis `[latent, V * 3]`, stored divided by `basis_scale`.
     pub basis: Linear,
+    /// Bias-free dynamic basis `[latent, V * 3]` applied to `w z_D`, stored divided by
+    /// `dynamic_scale` ([`ClothNetConfig::dynamic_basis`]).
+    pub dynamic_basis: Option<Linear>,
+    /// The effective dynamic basis is `dynamic_scale · dynamic_basis`
+    /// ([`ClothNetConfig::dynamic_basis_lr_scale`]).
+    pub dynamic_scale: f64,
     /// The effective basis is `basis_scale · basis` ([`ClothNetConfig::basis_lr_scale`]).
     pub basis_scale: f64,
     /// The effective bias is `bias_scale · basis.bias` ([`ClothNetConfig::basis_bias_lr_scale`]).
@@ -374,6 +422,12 @@ impl Decoder {
     /// The effective basis weight `[latent, V * 3]` (`basis_scale · B̂`).
     pub fn basis_weight(&self) -> Tensor<2> {
         self.basis.weight.val().mul_scalar(self.basis_scale)
+    }
+
+    /// The effective dynamic basis `[latent, V * 3]`, when the network has one.
+    pub fn dynamic_basis_weight(&self) -> Option<Tensor<2>> {
+        let b = self.dynamic_basis.as_ref()?;
+        Some(b.weight.val().mul_scalar(self.dynamic_scale))
     }
 }
 
@@ -439,9 +493,23 @@ impl ClothNet {
         dynamic_desc: Option<Tensor<4>>,
         w: f32,
     ) -> Tensor<3> {
+        self.codes(static_desc, dynamic_desc, w).0
+    }
+
+    /// `(z, w z_D)`: the latent code of [`ClothNet::latent_code`] and the weighted dynamic
+    /// code (`None` when it is skipped or the variant has none), each `[B, T, latent]`.
+    pub fn codes(
+        &self,
+        static_desc: Tensor<4>,
+        dynamic_desc: Option<Tensor<4>>,
+        w: f32,
+    ) -> (Tensor<3>, Option<Tensor<3>>) {
         if let Some(enc) = &self.entangled_encoder {
             let dynamic = dynamic_desc.unwrap_or_else(|| zeros_like_dynamic(&static_desc));
-            return enc.forward(Tensor::cat(vec![static_desc, dynamic], 3), None);
+            return (
+                enc.forward(Tensor::cat(vec![static_desc, dynamic], 3), None),
+                None,
+            );
         }
         let [b, t, _, _] = static_desc.dims();
         let device = static_desc.device();
@@ -449,13 +517,23 @@ impl ClothNet {
             .encode_static(static_desc)
             .unwrap_or_else(|| Tensor::zeros([b, t, self.latent], &device));
         match (dynamic_desc, &self.dynamic_encoder) {
-            (Some(d), Some(enc)) if w != 0.0 => z_s + enc.forward(d, None).mul_scalar(w),
-            _ => z_s,
+            (Some(d), Some(enc)) if w != 0.0 => {
+                let z_d = enc.forward(d, None).mul_scalar(w);
+                (z_s + z_d.clone(), Some(z_d))
+            }
+            _ => (z_s, None),
         }
     }
 
-    /// Rest-space offsets `[B, T, V, 3]` of latent codes `[B, T, latent]`.
+    /// Rest-space offsets `[B, T, V, 3]` of latent codes `[B, T, latent]` (no dynamic basis
+    /// term: see [`ClothNet::decode_with`]).
     pub fn decode(&self, z: Tensor<3>) -> Tensor<4> {
+        self.decode_with(z, None)
+    }
+
+    /// Rest-space offsets `[B, T, V, 3]` of latent codes `z` plus, when the network has a
+    /// dynamic basis, its product with the weighted dynamic codes `w z_D` (each `[B, T, latent]`).
+    pub fn decode_with(&self, z: Tensor<3>, weighted_dynamic: Option<Tensor<3>>) -> Tensor<4> {
         let [b, t, _] = z.dims();
         let h = self
             .decoder
@@ -468,7 +546,19 @@ impl ClothNet {
             .bias
             .as_ref()
             .map(|b| b.val().mul_scalar(self.decoder.bias_scale));
-        dense(h, self.decoder.basis.weight.val(), bias).reshape([b, t, self.vertices, 3])
+        let offsets = dense(h, self.decoder.basis.weight.val(), bias);
+        let offsets = match (weighted_dynamic, &self.decoder.dynamic_basis) {
+            (Some(z_d), Some(basis)) => {
+                offsets
+                    + dense(
+                        z_d.mul_scalar(self.decoder.dynamic_scale),
+                        basis.weight.val(),
+                        None,
+                    )
+            }
+            _ => offsets,
+        };
+        offsets.reshape([b, t, self.vertices, 3])
     }
 
     /// Offsets `[B, T, V, 3]` for every frame of the window: static descriptors `[B, T, J, 9]`,
@@ -479,7 +569,8 @@ impl ClothNet {
         dynamic_desc: Option<Tensor<4>>,
         w: f32,
     ) -> Tensor<4> {
-        self.decode(self.latent_code(static_desc, dynamic_desc, w))
+        let (z, z_d) = self.codes(static_desc, dynamic_desc, w);
+        self.decode_with(z, z_d)
     }
 
     /// Codes of the last `last` frames (1..=T) for motion augmentation: `(z_S, Some(z_D))` for
@@ -526,14 +617,14 @@ impl ClothNet {
             return self.decode(z.narrow(1, start, last));
         }
         let s_last = static_desc.narrow(1, start, last);
-        let z = match (dynamic_desc, &self.dynamic_encoder) {
+        let z_s = self.latent_code(s_last, None, 0.0);
+        match (dynamic_desc, &self.dynamic_encoder) {
             (Some(d), Some(enc)) if w != 0.0 => {
-                let z_d = enc.forward(d, None).narrow(1, start, last);
-                self.latent_code(s_last, None, 0.0) + z_d.mul_scalar(w)
+                let z_d = enc.forward(d, None).narrow(1, start, last).mul_scalar(w);
+                self.decode_with(z_s + z_d.clone(), Some(z_d))
             }
-            _ => self.latent_code(s_last, None, 0.0),
-        };
-        self.decode(z)
+            _ => self.decode(z_s),
+        }
     }
 }
 

@@ -192,3 +192,99 @@ fn dynamic_input_scale_divides_the_descriptors_and_folds_into_exported_weights()
     };
     assert!(bad.validate().is_err());
 }
+
+#[test]
+fn dynamic_basis_starts_at_zero_gets_a_gradient_and_scales_with_w() {
+    use burn::module::Param;
+    use burn::tensor::{Distribution, TensorData};
+    let device = Device::flex().autodiff();
+    device.seed(7);
+    let (j, v, t) = (3, 5, 4);
+    let plain = small().init(j, v, &device).unwrap();
+    let mut net = ClothNetConfig {
+        dynamic_basis: true,
+        ..small()
+    }
+    .init(j, v, &device)
+    .unwrap();
+    // Same encoders and decoder: only the (zero) dynamic basis differs.
+    net.static_encoder = plain.static_encoder.clone();
+    net.dynamic_encoder = plain.dynamic_encoder.clone();
+    net.decoder.mlp = plain.decoder.mlp.clone();
+    net.decoder.basis = plain.decoder.basis.clone();
+    let s = Tensor::<4>::random(
+        [2, t, j, STATIC_DIM],
+        Distribution::Normal(0.0, 1.0),
+        &device,
+    );
+    let d = Tensor::<4>::random(
+        [2, t, j, DYNAMIC_DIM],
+        Distribution::Normal(0.0, 1.0),
+        &device,
+    );
+    let out = |n: &ClothNet, w: f32| {
+        n.forward(s.clone(), Some(d.clone()), w)
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap()
+    };
+    assert_eq!(
+        out(&net, 1.0),
+        out(&plain, 1.0),
+        "a zero dynamic basis changes nothing"
+    );
+    // The first backward pass reaches the dynamic basis.
+    let loss = net
+        .forward(s.clone(), Some(d.clone()), 1.0)
+        .powi_scalar(2)
+        .sum();
+    let grads = loss.backward();
+    let basis = net.decoder.dynamic_basis.as_ref().unwrap();
+    let g = basis
+        .weight
+        .grad(&grads)
+        .unwrap()
+        .abs()
+        .sum()
+        .into_scalar::<f32>();
+    assert!(g > 0.0, "the dynamic basis has no gradient");
+    // With a non-zero dynamic basis, its term is linear in w on top of the shared decoder.
+    let k = net.latent * v * 3;
+    let values: Vec<f32> = (0..k).map(|i| ((i % 7) as f32 - 3.0) * 2.0).collect();
+    net.decoder.dynamic_basis = Some(Linear {
+        weight: Param::from_tensor(Tensor::from_data(
+            TensorData::new(values, [net.latent, v * 3]),
+            &device,
+        )),
+        bias: None,
+    });
+    for w in [0.0, 0.5, 2.0] {
+        let with: Vec<f32> = out(&net, w);
+        let without = out(&plain, w);
+        let (z, z_d) = net.codes(s.clone(), Some(d.clone()), w);
+        let expected: Vec<f32> = match z_d {
+            Some(z_d) => {
+                let extra = dense(
+                    z_d.mul_scalar(net.decoder.dynamic_scale),
+                    net.decoder.dynamic_basis.as_ref().unwrap().weight.val(),
+                    None,
+                );
+                (plain.decode(z) + extra.reshape([2, t, v, 3]))
+                    .into_data()
+                    .try_to_vec::<f32>()
+                    .unwrap()
+            }
+            None => plain.decode(z).into_data().try_to_vec::<f32>().unwrap(),
+        };
+        let err = with
+            .iter()
+            .zip(&expected)
+            .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+        assert!(err < 1e-5, "w {w}: offsets differ by {err}");
+        if w == 0.0 {
+            assert_eq!(with, without, "w = 0 leaves out the dynamic basis");
+        } else {
+            assert_ne!(with, without, "w {w}: the dynamic basis must act");
+        }
+    }
+}

@@ -341,8 +341,12 @@ pub struct InferenceWeights {
     pub recurrent: Option<RecurrentWeights>,
     /// Decoder layers, ReLU after each.
     pub decoder_layers: Vec<DenseWeights>,
-    /// Linear basis `[latent', V * 3]`, no bias, no activation.
+    /// Linear basis `[latent' + dynamic rows, V * 3]`, no activation; the rows after the
+    /// decoder's width (`dynamic_basis_rows` of them) take `w z_D`.
     pub basis: DenseWeights,
+    /// Rows of the basis that take the weighted dynamic code `w z_D` (the network's dynamic
+    /// basis, [`crate::model::ClothNetConfig::dynamic_basis`]): 0 or the latent size.
+    pub dynamic_basis_rows: usize,
 }
 
 impl InferenceWeights {
@@ -367,6 +371,11 @@ impl InferenceWeights {
             recurrent,
             decoder_layers: dense_layers(&model.decoder.mlp, "decoder")?,
             basis: effective_basis(&model.decoder)?,
+            dynamic_basis_rows: model
+                .decoder
+                .dynamic_basis
+                .as_ref()
+                .map_or(0, |_| model.latent),
         };
         out.validate()?;
         Ok(out)
@@ -439,8 +448,21 @@ impl InferenceWeights {
         }
         let d = chain(&self.decoder_layers, self.latent, "decoder")?;
         self.basis.validate("basis")?;
-        if self.basis.d_in != d {
-            return mismatch("basis input width", d, self.basis.d_in);
+        if self.dynamic_basis_rows != 0
+            && (self.dynamic_basis_rows != self.latent || self.kind != EncoderKind::Disentangled)
+        {
+            return mismatch(
+                "dynamic basis rows (the latent size, disentangled only)",
+                self.latent,
+                self.dynamic_basis_rows,
+            );
+        }
+        if self.basis.d_in != d + self.dynamic_basis_rows {
+            return mismatch(
+                "basis input width",
+                d + self.dynamic_basis_rows,
+                self.basis.d_in,
+            );
         }
         if self.basis.d_out != self.vertices * 3 {
             return mismatch(
@@ -492,9 +514,26 @@ impl InferenceWeights {
     }
 }
 
-/// The decoder's effective basis and bias (`basis_scale · B̂`, `bias_scale · b̂`, see [`crate::model::ClothNetConfig`]).
+/// The decoder's effective basis and bias (`basis_scale · B̂`, `bias_scale · b̂`, see
+/// [`crate::model::ClothNetConfig`]), with the dynamic basis's rows appended when it has one.
 fn effective_basis(decoder: &crate::model::network::Decoder) -> Result<DenseWeights, ModelError> {
     let mut basis = DenseWeights::from_linear(&decoder.basis, "basis")?;
+    if let Some(dynamic) = &decoder.dynamic_basis {
+        let mut dynamic = DenseWeights::from_linear(dynamic, "dynamic basis")?;
+        // Stored divided by its own scale; the rows appended below are scaled by the basis's.
+        let relative = (decoder.dynamic_scale / decoder.basis_scale) as f32;
+        dynamic.weight.iter_mut().for_each(|v| *v *= relative);
+        if dynamic.d_out != basis.d_out {
+            return Err(ModelError::ShapeMismatch {
+                what: "dynamic basis outputs".into(),
+                expected: basis.d_out,
+                found: dynamic.d_out,
+            });
+        }
+        // Row-major [d_in, d_out]: appending rows appends the data.
+        basis.weight.extend_from_slice(&dynamic.weight);
+        basis.d_in += dynamic.d_in;
+    }
     let scale = decoder.basis_scale as f32;
     if scale != 1.0 {
         basis.weight.iter_mut().for_each(|v| *v *= scale);

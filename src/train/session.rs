@@ -172,11 +172,17 @@ impl NeuralSession {
         Some(super::losses::skin_blended(template, blended).reshape([b, v, 3]))
     }
 
-    /// `z_s + z_d`, except for the last `augment` samples: their own static code (detached)
-    /// plus a shuffled sample's dynamic code (detached), the paper's motion augmentation.
-    fn mix_codes(&mut self, z_s: Tensor<3>, z_d: Tensor<3>, augment: usize) -> Tensor<3> {
+    /// `(z_s + z_d, z_d)`, except for the last `augment` samples: their own static code
+    /// (detached) plus a shuffled sample's dynamic code (detached), the paper's motion
+    /// augmentation. The second code feeds the dynamic basis, when the network has one.
+    fn mix_codes(
+        &mut self,
+        z_s: Tensor<3>,
+        z_d: Tensor<3>,
+        augment: usize,
+    ) -> (Tensor<3>, Tensor<3>) {
         if augment == 0 {
-            return z_s + z_d;
+            return (z_s + z_d.clone(), z_d);
         }
         let b = z_s.dims()[0];
         let kept = b - augment;
@@ -186,9 +192,16 @@ impl NeuralSession {
             TensorData::new(perm[..augment].to_vec(), [augment]),
             &self.device,
         );
-        let normal = z_s.clone().narrow(0, 0, kept) + z_d.clone().narrow(0, 0, kept);
-        let shuffled = z_s.narrow(0, kept, augment).detach() + z_d.select(0, picks).detach();
-        Tensor::cat(vec![normal, shuffled], 0)
+        let shuffled_d = z_d.clone().select(0, picks).detach();
+        let mixed_d = Tensor::cat(vec![z_d.narrow(0, 0, kept), shuffled_d], 0);
+        let z_s = Tensor::cat(
+            vec![
+                z_s.clone().narrow(0, 0, kept),
+                z_s.narrow(0, kept, augment).detach(),
+            ],
+            0,
+        );
+        (z_s + mixed_d.clone(), mixed_d)
     }
 
     /// Posed garment `[B, 3, V, 3]` of the last three frames of `batch` whose first `still`
@@ -205,18 +218,18 @@ impl NeuralSession {
             self.model.forward_last(statics, dynamics, 1.0, 3)
         } else {
             let (z_s, z_d) = self.model.encode_last(statics, dynamics, 3);
-            let z = match z_d {
+            match z_d {
                 Some(z_d) => {
                     let z_s = if split_static {
                         detach_from(z_s, still)
                     } else {
                         z_s
                     };
-                    self.mix_codes(z_s, z_d, augment)
+                    let (z, z_d) = self.mix_codes(z_s, z_d, augment);
+                    self.model.decode_with(z, Some(z_d))
                 }
-                None => z_s,
-            };
-            self.model.decode(z)
+                None => self.model.decode(z_s),
+            }
         };
         let v = self.garment.vertex_count();
         let blended = self.tensor4(batch.blended.clone(), [b, 3, v, 12]);
