@@ -183,6 +183,15 @@ fn a_checkpoint_on_a_full_disk_fails_cleanly_and_is_written_again_later() {
     small_run(&normal.path().join("run"), 2);
     let run = disk.path.join("run");
     copy_dir(&normal.path().join("run"), &run);
+    // Only the newest three: which checkpoints survive is then a function of the steps alone
+    // (the best by validation is pinned in the retention tests).
+    RunDir::open(&run)
+        .unwrap()
+        .set_retention(neural_cloth::train::retention::Retention {
+            keep_newest: 3,
+            keep_best: false,
+        })
+        .unwrap();
     let filler = disk.fill(300);
     let seen = Arc::new(Mutex::new(None));
     // Checkpoints 3 and 4 do not fit; room is made before step 5.
