@@ -122,7 +122,7 @@ pub struct TrainArgs {
     #[arg(long)]
     pub dynamic_basis_lr_scale: Option<f64>,
     /// Fraction of each batch given another sample's dynamic code, trained with the static
-    /// losses only (the paper's motion augmentation), 0..=0.9 (default 0.2)
+    /// losses only (the paper's motion augmentation, 0.2 there), 0..=0.9 (default 0)
     #[arg(long)]
     pub augmentation: Option<f32>,
     /// Train on a garment file even when it clearly does not fit the avatar (vertices inside

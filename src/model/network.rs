@@ -8,7 +8,9 @@
 //!   exactly.
 //! * `z = z_S + w z_D`, `w` in `[0, 2]` (1 = trained behaviour, paper §4.6).
 //! * Decoder: three FC 512 (ReLU, bias) then a bias-free linear basis `latent -> V * 3`
-//!   giving rest-space offsets `[B, T, V, 3]`.
+//!   giving rest-space offsets `[B, T, V, 3]`; with a dynamic basis (default) a second,
+//!   zero-initialised linear map adds `w B_D z_D` to them (not in the paper; see
+//!   [`ClothNetConfig::dynamic_basis`]).
 //!
 //! Variants (ablation and scene effects): [`EncoderKind::Entangled`] feeds one recurrent
 //! encoder (with biases) the concatenated 21-d descriptors; [`EncoderKind::StaticOnly`] has
@@ -109,7 +111,7 @@ pub struct ClothNetConfig {
     /// w = 1 and w = 0 differ by 0.3 mm where the simulator swings 24 mm); the direct path
     /// gives every dynamic code a gradient to the offsets from the first step. Exported
     /// weights append `B_D` to the basis rows (basis input `[h, w z_D]`). Disentangled
-    /// encoder only; default false (runs saved before it existed read false).
+    /// encoder only; default true (runs saved before it existed read false).
     #[serde(default)]
     pub dynamic_basis: bool,
     /// Learning-rate factor of the dynamic basis, in (0, 1] (stored as `B̂_D` with `B_D =
@@ -148,7 +150,7 @@ impl Default for ClothNetConfig {
             basis_bias_lr_scale: DEFAULT_BASIS_BIAS_LR_SCALE,
             dynamic_input_scale: Vec::new(),
             normalise_dynamic_input: false,
-            dynamic_basis: false,
+            dynamic_basis: true,
             dynamic_basis_lr_scale: DEFAULT_BASIS_LR_SCALE,
         }
     }
