@@ -277,7 +277,13 @@ impl AppState {
         }
         self.training
             .show_run(run.root.clone(), step, run.history(), Arc::new(artifact));
-        self.runs.retention = run.retention();
+        match run.retention() {
+            Ok(retention) => self.runs.retention = retention,
+            Err(e) => self.message(
+                Level::Warning,
+                format!("checkpoints are kept until the policy is fixed or saved again: {e}"),
+            ),
+        }
         self.runs.synced = Some((run.root.clone(), self.runs.retention));
         self.runs.linked = Some(run.root.clone());
         self.runs.disk = None;
@@ -338,7 +344,15 @@ impl AppState {
         }
         let run = RunDir { root: run };
         let before = run.disk_usage().total_bytes;
-        let deleted = run.prune_with(self.runs.retention, &run.history());
+        // Without a readable history no checkpoint would count as the best: prune nothing.
+        let history = match run.try_history() {
+            Ok(history) => history,
+            Err(e) => {
+                self.message(Level::Error, format!("nothing pruned: {e}"));
+                return;
+            }
+        };
+        let deleted = run.prune_with(self.runs.retention, &history);
         let freed = before.saturating_sub(run.disk_usage().total_bytes);
         self.runs.disk = None;
         self.message(

@@ -354,9 +354,12 @@ impl RunDir {
 
     /// Deletes the checkpoints the run's retention policy does not keep (by default the newest
     /// [`super::run_dir::KEEP_CHECKPOINTS`] and the best by validation; see
-    /// [`super::retention`]).
+    /// [`super::retention`]). An unreadable policy keeps every checkpoint (the app reports it
+    /// when it opens the run).
     fn prune(&self, history: &MetricHistory) {
-        self.prune_with(self.retention(), history);
+        if let Ok(retention) = self.retention() {
+            self.prune_with(retention, history);
+        }
     }
 }
 

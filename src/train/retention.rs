@@ -113,13 +113,27 @@ pub fn best_by_validation(steps: &[u64], history: &MetricHistory) -> Option<u64>
 }
 
 impl RunDir {
-    /// The run's retention policy (`retention.json`; the default when absent or unreadable).
-    pub fn retention(&self) -> Retention {
-        std::fs::read(self.root.join(RETENTION_FILE))
-            .ok()
-            .and_then(|bytes| serde_json::from_slice::<Retention>(&bytes).ok())
+    /// The run's retention policy: `retention.json`, the default when the file is absent, an
+    /// error naming the file when it cannot be read or parsed (a hand-edited policy that does
+    /// not parse must not silently fall back to deleting checkpoints).
+    pub fn retention(&self) -> Result<Retention, TrainError> {
+        let path = self.root.join(RETENTION_FILE);
+        let bytes = match std::fs::read(&path) {
+            Ok(bytes) => bytes,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Retention::default()),
+            Err(e) => {
+                return Err(TrainError::Corrupt {
+                    reason: format!("retention policy unreadable ({e})"),
+                    path,
+                });
+            }
+        };
+        serde_json::from_slice::<Retention>(&bytes)
             .map(Retention::clamped)
-            .unwrap_or_default()
+            .map_err(|e| TrainError::Corrupt {
+                reason: format!("retention policy does not parse ({e})"),
+                path,
+            })
     }
 
     /// Writes the run's retention policy (atomically); the next prune follows it.
@@ -223,7 +237,7 @@ mod tests {
             keep_best: false,
         })
         .unwrap();
-        let deleted = run.prune_with(run.retention(), &history);
+        let deleted = run.prune_with(run.retention().unwrap(), &history);
         assert_eq!(deleted, vec![run.checkpoint_path(20)]);
         assert_eq!(run.checkpoint_steps(), vec![60, 50, 40]);
     }
@@ -250,11 +264,38 @@ mod tests {
         assert_eq!(usage.checkpoints, 1);
         assert!(usage.checkpoint_bytes >= 150, "{usage:?}");
         assert!(usage.total_bytes > usage.checkpoint_bytes, "{usage:?}");
-        // A damaged policy file falls back to the default; a zero is brought into range.
-        std::fs::write(run.root.join(RETENTION_FILE), b"{").unwrap();
-        assert_eq!(run.retention(), Retention::default());
+        // A zero is brought into range.
         std::fs::write(run.root.join(RETENTION_FILE), br#"{"keep_newest": 0}"#).unwrap();
-        assert_eq!(run.retention().keep_newest, 1);
+        assert_eq!(run.retention().unwrap().keep_newest, 1);
+    }
+
+    #[test]
+    fn a_malformed_retention_file_keeps_every_checkpoint() {
+        let history = MetricHistory::default();
+        let (_dir, run) = run_with(&[1], &history);
+        // A hand edit that does not parse (a string where a number belongs).
+        std::fs::write(
+            run.root.join(RETENTION_FILE),
+            br#"{"keep_newest": "50", "keep_best": true}"#,
+        )
+        .unwrap();
+        let error = run.retention().unwrap_err().to_string();
+        assert!(
+            error.contains("does not parse") && error.ends_with(RETENTION_FILE),
+            "{error}"
+        );
+        for step in 2..=6 {
+            let state = CheckpointState {
+                step,
+                learning_rate: 1e-3,
+            };
+            run.write_checkpoint(state, &[1; 100], &[2; 50], &history)
+                .unwrap();
+        }
+        assert_eq!(run.checkpoint_steps(), vec![6, 5, 4, 3, 2, 1]);
+        // Without the file the default policy applies again.
+        std::fs::remove_file(run.root.join(RETENTION_FILE)).unwrap();
+        assert_eq!(run.retention().unwrap(), Retention::default());
     }
 
     #[test]
