@@ -574,9 +574,13 @@ fn compare_engine_with_burn(
 
 #[test]
 fn engine_matches_burn_disentangled_for_w_0_1_2() {
+    // Without a dynamic basis, as every run saved before it existed.
     compare_engine_with_burn(
         EncoderKind::Disentangled,
-        lively(EncoderKind::Disentangled),
+        ClothNetConfig {
+            dynamic_basis: false,
+            ..lively(EncoderKind::Disentangled)
+        },
         &[0.0, 1.0, 2.0],
         InferenceOptions::exact(),
         1e-5,

@@ -565,8 +565,8 @@ impl InferenceEngine {
         self.dynamic_skipped
     }
 
-    /// Decoder output of the last frame: the basis coefficients (after ReLU; the basis rows
-    /// of its zeros were not read).
+    /// Basis coefficients of the last frame: the decoder's output (after ReLU) followed, with
+    /// a dynamic basis, by `w z_D` (any sign); the basis rows of its zeros were not read.
     pub fn basis_input(&self) -> &[f32] {
         &self.bufs.h
     }

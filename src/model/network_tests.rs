@@ -39,6 +39,10 @@ fn config_validation_and_toml_round_trip() {
     };
     let back: ClothNetConfig = toml::from_str(&toml::to_string(&c).unwrap()).unwrap();
     assert_eq!(back, c);
+    // A run saved before the dynamic basis existed reads without one, at the basis's rate.
+    let old: ClothNetConfig = toml::from_str("latent = 12").unwrap();
+    assert!(!old.dynamic_basis && ClothNetConfig::default().dynamic_basis);
+    assert_eq!(old.dynamic_basis_lr_scale, DEFAULT_BASIS_LR_SCALE);
     assert!(c.init(0, 5, &Device::flex()).is_err());
 }
 
@@ -200,7 +204,13 @@ fn dynamic_basis_starts_at_zero_gets_a_gradient_and_scales_with_w() {
     let device = Device::flex().autodiff();
     device.seed(7);
     let (j, v, t) = (3, 5, 4);
-    let plain = small().init(j, v, &device).unwrap();
+    let plain = ClothNetConfig {
+        dynamic_basis: false,
+        ..small()
+    }
+    .init(j, v, &device)
+    .unwrap();
+    assert!(plain.decoder.dynamic_basis.is_none());
     let mut net = ClothNetConfig {
         dynamic_basis: true,
         ..small()

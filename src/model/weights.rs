@@ -518,22 +518,6 @@ impl InferenceWeights {
 /// [`crate::model::ClothNetConfig`]), with the dynamic basis's rows appended when it has one.
 fn effective_basis(decoder: &crate::model::network::Decoder) -> Result<DenseWeights, ModelError> {
     let mut basis = DenseWeights::from_linear(&decoder.basis, "basis")?;
-    if let Some(dynamic) = &decoder.dynamic_basis {
-        let mut dynamic = DenseWeights::from_linear(dynamic, "dynamic basis")?;
-        // Stored divided by its own scale; the rows appended below are scaled by the basis's.
-        let relative = (decoder.dynamic_scale / decoder.basis_scale) as f32;
-        dynamic.weight.iter_mut().for_each(|v| *v *= relative);
-        if dynamic.d_out != basis.d_out {
-            return Err(ModelError::ShapeMismatch {
-                what: "dynamic basis outputs".into(),
-                expected: basis.d_out,
-                found: dynamic.d_out,
-            });
-        }
-        // Row-major [d_in, d_out]: appending rows appends the data.
-        basis.weight.extend_from_slice(&dynamic.weight);
-        basis.d_in += dynamic.d_in;
-    }
     let scale = decoder.basis_scale as f32;
     if scale != 1.0 {
         basis.weight.iter_mut().for_each(|v| *v *= scale);
@@ -541,6 +525,21 @@ fn effective_basis(decoder: &crate::model::network::Decoder) -> Result<DenseWeig
     let bias_scale = decoder.bias_scale as f32;
     if let (Some(bias), true) = (basis.bias.as_mut(), bias_scale != 1.0) {
         bias.iter_mut().for_each(|v| *v *= bias_scale);
+    }
+    if let Some(dynamic) = &decoder.dynamic_basis {
+        let mut dynamic = DenseWeights::from_linear(dynamic, "dynamic basis")?;
+        if dynamic.d_out != basis.d_out {
+            return Err(ModelError::ShapeMismatch {
+                what: "dynamic basis outputs".into(),
+                expected: basis.d_out,
+                found: dynamic.d_out,
+            });
+        }
+        let scale = decoder.dynamic_scale as f32;
+        dynamic.weight.iter_mut().for_each(|v| *v *= scale);
+        // Row-major [d_in, d_out]: appending rows appends the data.
+        basis.weight.extend_from_slice(&dynamic.weight);
+        basis.d_in += dynamic.d_in;
     }
     Ok(basis)
 }
