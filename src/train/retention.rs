@@ -159,8 +159,21 @@ impl RunDir {
 
     /// Deletes the checkpoints `retention` does not keep; returns the deleted folders. Each
     /// is first renamed to a hidden `.step-N.del-PID` (atomic), so that a crash while deleting
-    /// never leaves a half-deleted checkpoint under a checkpoint's name.
+    /// never leaves a half-deleted checkpoint under a checkpoint's name. Such folders left by
+    /// an earlier prune (a crash, or a removal that failed) are removed first; a checkpoint
+    /// counts as deleted only when its removal succeeded.
     pub fn prune_with(&self, retention: Retention, history: &MetricHistory) -> Vec<PathBuf> {
+        self.prune_removing(retention, history, |path| std::fs::remove_dir_all(path))
+    }
+
+    /// [`Self::prune_with`] removing folders with `remove` (tests make it fail).
+    fn prune_removing(
+        &self,
+        retention: Retention,
+        history: &MetricHistory,
+        remove: impl Fn(&Path) -> std::io::Result<()>,
+    ) -> Vec<PathBuf> {
+        self.sweep_deleting(&remove);
         let kept = self.kept_steps(retention, history);
         let mut deleted = Vec::new();
         for step in self.checkpoint_steps() {
@@ -169,12 +182,28 @@ impl RunDir {
             }
             let path = self.checkpoint_path(step);
             let doomed = path.with_file_name(format!(".step-{step:08}.del-{}", std::process::id()));
-            if std::fs::rename(&path, &doomed).is_ok() {
-                let _ = std::fs::remove_dir_all(&doomed);
+            if std::fs::rename(&path, &doomed).is_ok() && remove(&doomed).is_ok() {
                 deleted.push(path);
             }
         }
         deleted
+    }
+
+    /// Removes the hidden `.step-N.del-PID` folders of checkpoints whose deletion did not
+    /// finish (they are no checkpoints any more, but still use disk).
+    fn sweep_deleting(&self, remove: &impl Fn(&Path) -> std::io::Result<()>) {
+        let Ok(entries) = std::fs::read_dir(self.checkpoints_dir()) else {
+            return;
+        };
+        for entry in entries.filter_map(|e| e.ok()) {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            let leftover = name
+                .strip_prefix(".step-")
+                .is_some_and(|rest| rest.contains(".del-"));
+            if leftover && entry.path().is_dir() {
+                let _ = remove(&entry.path());
+            }
+        }
     }
 
     /// How much disk the run folder uses, and how many checkpoints it holds.
@@ -296,6 +325,60 @@ mod tests {
         // Without the file the default policy applies again.
         std::fs::remove_file(run.root.join(RETENTION_FILE)).unwrap();
         assert_eq!(run.retention().unwrap(), Retention::default());
+    }
+
+    #[test]
+    fn leftover_deletions_are_swept_and_a_failed_removal_is_not_reported() {
+        let history = MetricHistory::default();
+        let (_dir, run) = run_with(&[], &history);
+        run.set_retention(Retention {
+            keep_newest: 10,
+            keep_best: false,
+        })
+        .unwrap();
+        for step in 1..=4 {
+            let state = CheckpointState {
+                step,
+                learning_rate: 1e-3,
+            };
+            run.write_checkpoint(state, &[1; 100], &[2; 50], &history)
+                .unwrap();
+        }
+        // A deletion an earlier prune did not finish (a crash, or a removal that failed).
+        let leftover = run.checkpoints_dir().join(".step-00000000.del-99");
+        std::fs::create_dir_all(&leftover).unwrap();
+        std::fs::write(leftover.join("model.bin"), [0u8; 4096]).unwrap();
+        let keep_one = Retention {
+            keep_newest: 3,
+            keep_best: false,
+        };
+        let deleted = run.prune_with(keep_one, &history);
+        assert_eq!(deleted, vec![run.checkpoint_path(1)]);
+        assert!(!leftover.exists(), "the leftover deletion was not swept");
+        // A removal that fails: the step is not reported deleted, and the next prune sweeps
+        // its hidden folder.
+        let keep_two = Retention {
+            keep_newest: 2,
+            ..keep_one
+        };
+        let failing = |_: &Path| Err(std::io::Error::other("device busy"));
+        assert!(run.prune_removing(keep_two, &history, failing).is_empty());
+        assert_eq!(run.checkpoint_steps(), vec![4, 3]);
+        let hidden = |run: &RunDir| {
+            std::fs::read_dir(run.checkpoints_dir())
+                .unwrap()
+                .filter(|e| {
+                    e.as_ref()
+                        .unwrap()
+                        .file_name()
+                        .to_string_lossy()
+                        .contains(".del-")
+                })
+                .count()
+        };
+        assert_eq!(hidden(&run), 1);
+        run.prune_with(keep_two, &history);
+        assert_eq!(hidden(&run), 0);
     }
 
     #[test]
