@@ -19,6 +19,7 @@ pub mod gru;
 pub mod inference;
 pub mod kernels;
 pub mod network;
+pub mod network_config;
 pub mod skinning;
 pub mod weights;
 
