@@ -1,6 +1,9 @@
 //! Tests of the cloth network: shapes, configuration, the basis bias scale.
 
 use super::*;
+use crate::model::descriptors::STATIC_DIM;
+use burn::nn::Linear;
+use burn::tensor::Device;
 
 fn small() -> ClothNetConfig {
     ClothNetConfig {
