@@ -164,32 +164,16 @@ impl ClothNetConfig {
                 self.init_std
             )));
         }
-        if !(self.basis_lr_scale.is_finite()
-            && self.basis_lr_scale > 0.0
-            && self.basis_lr_scale <= 1.0)
-        {
-            return Err(ModelError::InvalidConfig(format!(
-                "basis_lr_scale {} is outside (0, 1]",
-                self.basis_lr_scale
-            )));
-        }
-        if !(self.dynamic_basis_lr_scale.is_finite()
-            && self.dynamic_basis_lr_scale > 0.0
-            && self.dynamic_basis_lr_scale <= 1.0)
-        {
-            return Err(ModelError::InvalidConfig(format!(
-                "dynamic_basis_lr_scale {} is outside (0, 1]",
-                self.dynamic_basis_lr_scale
-            )));
-        }
-        if !(self.basis_bias_lr_scale.is_finite()
-            && self.basis_bias_lr_scale > 0.0
-            && self.basis_bias_lr_scale <= 1.0)
-        {
-            return Err(ModelError::InvalidConfig(format!(
-                "basis_bias_lr_scale {} is outside (0, 1]",
-                self.basis_bias_lr_scale
-            )));
+        for (name, value) in [
+            ("basis_lr_scale", self.basis_lr_scale),
+            ("dynamic_basis_lr_scale", self.dynamic_basis_lr_scale),
+            ("basis_bias_lr_scale", self.basis_bias_lr_scale),
+        ] {
+            if !(value.is_finite() && value > 0.0 && value <= 1.0) {
+                return Err(ModelError::InvalidConfig(format!(
+                    "{name} {value} is outside (0, 1]"
+                )));
+            }
         }
         let scale = &self.dynamic_input_scale;
         if !scale.is_empty()

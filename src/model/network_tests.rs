@@ -28,6 +28,14 @@ fn config_validation_and_toml_round_trip() {
         .validate()
         .is_err()
     );
+    for bad in [0.0, 1.5, f64::NAN] {
+        let c = ClothNetConfig {
+            dynamic_basis_lr_scale: bad,
+            ..Default::default()
+        };
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains("dynamic_basis_lr_scale"), "{e}");
+    }
     assert!(
         ClothNetConfig {
             init_std: f64::NAN,
