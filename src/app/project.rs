@@ -1,5 +1,5 @@
 //! Project files: the whole setup (scene sources, fabric, effects, training config, runs
-//! folder, the run shown, checkpoint retention, view settings) as one human-edited TOML file, plus the recent-files list
+//! folder, the run shown, view settings) as one human-edited TOML file, plus the recent-files list
 //! (machine-written JSON). Paths inside a project are stored relative to the project file
 //! when they lie below its folder, and resolved against it when opened.
 
@@ -11,7 +11,6 @@ use crate::physics::FabricParams;
 use crate::render::DrawOptions;
 use crate::scene::Effects;
 use crate::train::TrainConfig;
-use crate::train::retention::Retention;
 
 use super::metrics::XAxis;
 
@@ -110,8 +109,10 @@ pub struct ProjectFile {
     pub runs_folder: Option<PathBuf>,
     /// The run whose trained model the project shows (reopened with the project).
     pub run: Option<PathBuf>,
-    /// Which checkpoints a run keeps.
-    pub retention: Retention,
+    /// `[retention]` of earlier project files: read and ignored, never written (a run's
+    /// checkpoint retention lives in its own folder, `RUN/retention.json`).
+    #[serde(rename = "retention", skip_serializing)]
+    pub old_retention: Option<serde::de::IgnoredAny>,
     /// View settings.
     pub view: ViewSettings,
 }
@@ -126,7 +127,7 @@ impl Default for ProjectFile {
             training: TrainConfig::default(),
             runs_folder: None,
             run: None,
-            retention: Retention::default(),
+            old_retention: None,
             view: ViewSettings::default(),
         }
     }
@@ -324,7 +325,6 @@ mod tests {
         p.view.w = 1.5;
         p.view.draw.wireframe = true;
         p.run = Some(dir.path().join("runs/run-1"));
-        p.retention.keep_newest = 5;
         let file = dir.path().join("my.ncproj.toml");
         p.save(&file).unwrap();
         let text = std::fs::read_to_string(&file).unwrap();
@@ -336,6 +336,23 @@ mod tests {
         );
         let back = ProjectFile::open(&file).unwrap();
         assert_eq!(back, p);
+    }
+
+    #[test]
+    fn retention_is_not_saved_and_old_files_with_it_still_open() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("old.toml");
+        ProjectFile::default().save(&file).unwrap();
+        let text = std::fs::read_to_string(&file).unwrap();
+        assert!(!text.contains("retention"), "{text}");
+        // A project saved before retention moved to the run folder.
+        std::fs::write(
+            &file,
+            format!("{text}\n[retention]\nkeep_newest = 5\nkeep_best = false\n"),
+        )
+        .unwrap();
+        let old = ProjectFile::open(&file).unwrap();
+        assert_eq!(old.version, PROJECT_VERSION);
     }
 
     #[test]

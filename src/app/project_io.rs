@@ -19,7 +19,6 @@ impl AppState {
             training: self.train_config.clone(),
             runs_folder: self.runs.folder.clone(),
             run: self.current_run(),
-            retention: self.runs.retention,
             view: ViewSettings {
                 w: self.w,
                 draw: self.draw,
@@ -83,7 +82,9 @@ impl AppState {
         self.effects = project.effects;
         self.train_config = project.training.clone();
         self.runs.folder = project.runs_folder.clone();
-        self.runs.retention = project.retention.clamped();
+        // Retention is the run's own (RUN/retention.json, read when the run opens); new runs
+        // start with the default.
+        self.runs.retention = Default::default();
         self.runs.linked = None;
         self.w = project.view.w;
         self.draw = project.view.draw;

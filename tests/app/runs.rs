@@ -180,7 +180,10 @@ fn open_run_through_the_in_app_browser_shows_its_trained_model_and_the_project_r
     };
     again.run();
     assert_eq!(
-        RunDir { root: run.clone() }.retention().keep_newest,
+        RunDir { root: run.clone() }
+            .retention()
+            .unwrap()
+            .keep_newest,
         1,
         "the policy is written into the run folder"
     );
@@ -191,6 +194,35 @@ fn open_run_through_the_in_app_browser_shows_its_trained_model_and_the_project_r
         vec![newest]
     );
     again.get_by_label_contains("1 checkpoints");
+}
+
+#[test]
+fn a_reopened_project_takes_its_runs_retention_and_has_nothing_to_save() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    train_tiny_run(&run, 2);
+    let mut h = in_app_harness();
+    assert!(h.state_mut().state.open_run(&run, true));
+    settle_run(&mut h);
+    let project = dir.path().join("p.toml");
+    assert!(h.state_mut().state.save_project(&project));
+    // The run's policy changes after the project was saved (the app of another project, or
+    // a hand edit): the run folder is its one home.
+    let policy = Retention {
+        keep_newest: 7,
+        keep_best: false,
+    };
+    RunDir { root: run.clone() }.set_retention(policy).unwrap();
+
+    let mut again = in_app_harness();
+    assert!(again.state_mut().open_project(&project));
+    settle_run(&mut again);
+    let s = &again.state().state;
+    assert_eq!(s.runs.retention, policy, "the run's own policy is shown");
+    assert!(
+        !s.has_unsaved_changes(),
+        "a freshly opened project has nothing to save"
+    );
 }
 
 #[test]
