@@ -66,11 +66,12 @@ pub struct TrainingRequest {
 
 impl TrainingRequest {
     /// The scene description the run records: the built-in scene with the loaded files in
-    /// place of its avatar, garment and motions (absolute paths), the garment with the
-    /// skin-weight smoothing it was actually loaded with, so that `eval` and `bake` rebuild
-    /// the garment the model was trained on.
+    /// place of its avatar and garment (absolute paths), the garment with the skin-weight
+    /// smoothing it was actually loaded with, and every motion trained on with its split (the
+    /// avatar's own motions, then the loaded files), so that `eval` and `bake` rebuild the garment and motions the
+    /// model was trained on.
     pub fn scene_config(&self) -> SceneConfig {
-        use crate::scene::config::{AvatarSource, GarmentSource, MotionSource, Split};
+        use crate::scene::config::{AvatarSource, GarmentSource};
         let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
         let mut config = SceneConfig::default_scene();
         let sources = &self.sources;
@@ -89,22 +90,71 @@ impl TrainingRequest {
                 smoothing_passes: Some(self.scene.garment.smoothing_passes),
             };
         }
-        // A loaded avatar brings its own animations; loaded BVH motions come on top.
-        let mut motion_files: Vec<&PathBuf> = sources.avatar.iter().collect();
-        motion_files.extend(&sources.motions);
-        if !motion_files.is_empty() {
-            config.motions = motion_files
-                .into_iter()
-                .map(|m| MotionSource::File {
-                    path: abs(m),
-                    units: None,
-                    split: Split::Train,
-                    name: None,
-                    joint_map: None,
-                })
-                .collect();
-        }
+        config.motions = self.motion_sources(&abs);
         config
+    }
+
+    /// The sources of the scene's motions, in the scene's order, each with the split it
+    /// trains with: the avatar's own motions (the built-in scene's procedural ones, or the
+    /// animations of a loaded avatar file), then the loaded motion files (the last
+    /// `sources.motions.len()` motions of the scene). A procedural motion is recorded by its
+    /// kind (its name), duration and rate at speed 1 (the app makes no other); one whose name
+    /// is no kind's cannot be recorded and is left out.
+    fn motion_sources(
+        &self,
+        abs: &dyn Fn(&Path) -> PathBuf,
+    ) -> Vec<crate::scene::config::MotionSource> {
+        use crate::scene::config::MotionSource;
+        use crate::scene::procedural::MotionKind;
+        let motions = &self.scene.motions;
+        let files = &self.sources.motions;
+        let own = motions.len().saturating_sub(files.len());
+        let (avatar_motions, file_motions) = motions.split_at(own);
+        let mut sources: Vec<MotionSource> = match &self.sources.avatar {
+            None => avatar_motions
+                .iter()
+                .filter_map(|(motion, split)| {
+                    let fps = self.scene.training_fps;
+                    Some(MotionSource::Builtin {
+                        builtin: MotionKind::from_name(&motion.name)?,
+                        duration_secs: motion.duration_secs(),
+                        speed: 1.0,
+                        fps: (motion.fps != fps).then_some(motion.fps),
+                        split: *split,
+                        name: None,
+                    })
+                })
+                .collect(),
+            Some(avatar) => {
+                let file = |name: Option<String>, split| MotionSource::File {
+                    path: abs(avatar),
+                    units: None,
+                    split,
+                    name,
+                    joint_map: None,
+                };
+                match avatar_motions.first() {
+                    // One split for all: the whole file (as it was loaded).
+                    Some((_, first)) if avatar_motions.iter().all(|(_, split)| split == first) => {
+                        vec![file(None, *first)]
+                    }
+                    _ => avatar_motions
+                        .iter()
+                        .map(|(motion, split)| file(Some(motion.name.clone()), *split))
+                        .collect(),
+                }
+            }
+        };
+        sources.extend(files.iter().zip(file_motions).map(|(path, (_, split))| {
+            MotionSource::File {
+                path: abs(path),
+                units: None,
+                split: *split,
+                name: None,
+                joint_map: None,
+            }
+        }));
+        sources
     }
 }
 
@@ -426,5 +476,101 @@ impl TrainingControl {
                 self.handle = None;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Split;
+    use crate::scene::config::{MotionSource, SceneConfig};
+    use crate::scene::procedural::build_builtin;
+
+    /// A coarse built-in scene with walk (train), turn (validation) and spin (test).
+    fn builtin_scene() -> Scene {
+        let config = SceneConfig::from_toml_str(
+            r#"
+name = "small"
+[avatar]
+builtin = "mannequin"
+[garment]
+builtin = "tshirt"
+resolution = 300
+[[motions]]
+builtin = "walk"
+duration_secs = 0.5
+[[motions]]
+builtin = "turn"
+duration_secs = 0.5
+split = "validation"
+[[motions]]
+builtin = "spin"
+duration_secs = 0.5
+split = "test"
+"#,
+        )
+        .unwrap();
+        build_builtin(&config).unwrap()
+    }
+
+    /// The motion name a built-in motion source gives (None for a file).
+    fn builtin_name(source: &MotionSource) -> Option<&str> {
+        match source {
+            MotionSource::Builtin { builtin, name, .. } => {
+                Some(name.as_deref().unwrap_or(builtin.name()))
+            }
+            MotionSource::File { .. } => None,
+        }
+    }
+
+    fn split_of(source: &MotionSource) -> Split {
+        match source {
+            MotionSource::Builtin { split, .. } | MotionSource::File { split, .. } => *split,
+        }
+    }
+
+    #[test]
+    fn the_recorded_scene_keeps_the_builtin_motions_and_every_split() {
+        // The built-in avatar's motions and a BVH loaded on top (the app's BVH is the last
+        // motion; here a renamed copy of the walk), put into the validation split.
+        let mut scene = builtin_scene();
+        let mut mocap = scene.motions[0].0.clone();
+        mocap.name = "mocap".into();
+        scene.motions.push((mocap, Split::Validation));
+        let request = TrainingRequest {
+            scene: Arc::new(scene),
+            fabric: FabricParams::default(),
+            config: TrainConfig::default(),
+            run_dir: PathBuf::from("runs"),
+            sources: crate::app::project::SceneSources {
+                motions: vec![PathBuf::from("/data/mocap.bvh")],
+                ..Default::default()
+            },
+        };
+        let motions = request.scene_config().motions;
+        let names: Vec<Option<&str>> = motions.iter().map(builtin_name).collect();
+        assert_eq!(
+            names,
+            [Some("walk"), Some("turn"), Some("spin"), None],
+            "{motions:?}"
+        );
+        let splits: Vec<Split> = motions.iter().map(split_of).collect();
+        assert_eq!(
+            splits,
+            [
+                Split::Train,
+                Split::Validation,
+                Split::Test,
+                Split::Validation
+            ]
+        );
+        assert!(
+            matches!(&motions[3], MotionSource::File { path, .. } if path.ends_with("mocap.bvh"))
+        );
+        // The built-in motions as trained (half a second), not the default scene's.
+        let MotionSource::Builtin { duration_secs, .. } = &motions[0] else {
+            panic!("{motions:?}");
+        };
+        assert!((duration_secs - 0.5).abs() < 1e-3, "{duration_secs}");
     }
 }
