@@ -100,12 +100,20 @@ impl ExportFormat {
 
     /// File extension (for the OBJ sequence, of each frame file).
     pub fn extension(self) -> &'static str {
+        match self.extensions() {
+            [ext] => ext,
+            _ => "",
+        }
+    }
+
+    /// [`Self::extension`] as a list, as file-dialog filters take it.
+    pub fn extensions(self) -> &'static [&'static str] {
         match self {
-            Self::Glb => "glb",
-            Self::Pc2 => "pc2",
-            Self::Mdd => "mdd",
-            Self::ObjSequence => "obj",
-            Self::Usd => "usda",
+            Self::Glb => &["glb"],
+            Self::Pc2 => &["pc2"],
+            Self::Mdd => &["mdd"],
+            Self::ObjSequence => &["obj"],
+            Self::Usd => &["usda"],
         }
     }
 }

@@ -147,7 +147,7 @@ impl NeuralClothApp {
             self.export_job.cancel();
         }
         if browse {
-            let purpose = PickPurpose::ExportPath(self.state.export.format.extension());
+            let purpose = PickPurpose::ExportPath(self.state.export.format);
             let start = PathBuf::from(self.state.export.path.trim());
             self.picker.request(purpose, Some(&start));
         }

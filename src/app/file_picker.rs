@@ -10,6 +10,7 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use super::export::ExportFormat;
 use super::file_browser::{BrowserAnswer, Choose, FileBrowser};
 use super::panels::LoadKind;
 
@@ -40,8 +41,9 @@ pub enum PickPurpose {
     OpenRun,
     /// The folder new runs are written under.
     RunsFolder,
-    /// Where the export dialog writes (files of `extension`).
-    ExportPath(&'static str),
+    /// Where the export dialog writes a bake of this format: a file of its extension, or a
+    /// folder for the OBJ sequence.
+    ExportPath(ExportFormat),
 }
 
 impl PickPurpose {
@@ -63,21 +65,15 @@ impl PickPurpose {
             Self::Load(kind) => kind.extensions(),
             Self::OpenProject | Self::SaveProject => &[super::timeline::PROJECT_EXTENSION],
             Self::OpenRun | Self::RunsFolder => &[],
-            Self::ExportPath(ext) => match ext {
-                "glb" => &["glb"],
-                "pc2" => &["pc2"],
-                "mdd" => &["mdd"],
-                "obj" => &["obj"],
-                "usda" => &["usda"],
-                _ => &[],
-            },
+            Self::ExportPath(ExportFormat::ObjSequence) => &[],
+            Self::ExportPath(format) => format.extensions(),
         }
     }
 
     /// The file name a save starts with when none is given.
     pub fn default_name(self) -> String {
         match self {
-            Self::ExportPath(ext) => format!("export.{ext}"),
+            Self::ExportPath(format) => format.with_extension("export"),
             _ => format!("project.{}", super::timeline::PROJECT_EXTENSION),
         }
     }
@@ -85,6 +81,7 @@ impl PickPurpose {
     fn choose(self) -> Choose {
         match self {
             Self::Load(_) | Self::OpenProject => Choose::OpenFile,
+            Self::ExportPath(ExportFormat::ObjSequence) => Choose::Folder,
             Self::SaveProject | Self::ExportPath(_) => Choose::SaveFile,
             Self::OpenRun | Self::RunsFolder => Choose::Folder,
         }
@@ -155,16 +152,34 @@ impl FilePicker {
     pub fn request(&mut self, purpose: PickPurpose, start: Option<&Path>) {
         if self.uses_desktop() {
             let asked = Instant::now();
-            match desktop_dialog(purpose, start) {
-                Some(path) => {
-                    self.picked = Some((purpose, path));
-                    return;
-                }
-                None if asked.elapsed() > Duration::from_secs_f64(NO_DIALOG_SECS) => return,
-                None => self.desktop_failed = true,
+            let answer = desktop_dialog(purpose, start);
+            if self.desktop_answered(purpose, answer, asked.elapsed()) {
+                return;
             }
         }
         self.open_browser(purpose, start);
+    }
+
+    /// Takes the desktop dialog's answer, given after `took` (a save path gets the purpose's
+    /// extension when it has none, as in the in-app browser); false when no dialog opened and
+    /// the in-app browser should be used instead.
+    fn desktop_answered(
+        &mut self,
+        purpose: PickPurpose,
+        answer: Option<PathBuf>,
+        took: Duration,
+    ) -> bool {
+        match answer {
+            Some(path) => {
+                self.picked = Some((purpose, with_extension(path, purpose)));
+                true
+            }
+            None if took > Duration::from_secs_f64(NO_DIALOG_SECS) => true,
+            None => {
+                self.desktop_failed = true;
+                false
+            }
+        }
     }
 
     fn open_browser(&mut self, purpose: PickPurpose, start: Option<&Path>) {
@@ -278,6 +293,33 @@ mod tests {
         assert!(matches_extension(dir.path(), exts));
         assert!(!matches_extension(&dir.path().join("walk.bvh"), exts));
         assert!(matches_extension(&dir.path().join("x.any"), &[]));
+    }
+
+    #[test]
+    fn an_export_path_follows_its_format_and_the_obj_sequence_is_a_folder() {
+        let obj = PickPurpose::ExportPath(ExportFormat::ObjSequence);
+        assert_eq!(obj.choose(), Choose::Folder);
+        assert!(obj.extensions().is_empty());
+        assert_eq!(obj.default_name(), "export");
+        assert_eq!(
+            with_extension(PathBuf::from("/tmp/frames"), obj),
+            PathBuf::from("/tmp/frames")
+        );
+        let usd = PickPurpose::ExportPath(ExportFormat::Usd);
+        assert_eq!(usd.choose(), Choose::SaveFile);
+        assert_eq!(usd.extensions(), ["usda"]);
+        assert_eq!(usd.default_name(), "export.usda");
+        // The desktop dialog's answer gets the extension too.
+        let mut picker = FilePicker::default();
+        let glb = PickPurpose::ExportPath(ExportFormat::Glb);
+        assert!(picker.desktop_answered(glb, Some("/tmp/walk".into()), Duration::ZERO));
+        assert_eq!(
+            picker.take_picked(),
+            Some((glb, PathBuf::from("/tmp/walk.glb")))
+        );
+        // A dialog that never opened hands over to the in-app browser.
+        assert!(!picker.desktop_answered(glb, None, Duration::ZERO));
+        assert!(picker.desktop_failed);
     }
 
     #[test]

@@ -36,12 +36,14 @@ impl NeuralClothApp {
                 self.state.open_run(path, true);
             }
             PickPurpose::RunsFolder => self.state.set_runs_folder(path),
-            PickPurpose::ExportPath(_) => {
+            PickPurpose::ExportPath(format) => {
                 let export = &mut self.state.export;
                 export.path = path.display().to_string();
-                if let Some(format) = ExportFormat::from_path(&export.path) {
-                    export.format = format;
-                }
+                // A file's extension names its format; the OBJ sequence's folder names none.
+                export.format = match format {
+                    ExportFormat::ObjSequence => format,
+                    _ => ExportFormat::from_path(&export.path).unwrap_or(format),
+                };
                 export.confirm_overwrite = None;
             }
         }

@@ -270,3 +270,37 @@ fn export_dialog_opens_on_the_motion_on_screen_and_lists_its_files() {
     assert_eq!(*recorder.extras.lock().unwrap(), vec![(2, false, true)]);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn browsing_for_the_obj_sequence_chooses_a_folder() {
+    let recorder = std::sync::Arc::new(Recorder::default());
+    let mut h = harness_with(neural_cloth::app::AppOptions {
+        exporter: Some(Box::new(Shared(recorder))),
+        file_dialog: neural_cloth::app::file_picker::DialogMode::InApp,
+        ..options(None)
+    });
+    let dir = scratch("obj-folder");
+    std::fs::create_dir_all(dir.join("frames")).expect("frames folder");
+    h.state_mut().state.export.open = true;
+    h.state_mut().state.export.format = ExportFormat::ObjSequence;
+    h.state_mut().state.export.path = dir.join("frames").display().to_string();
+    h.run();
+    h.get_by_label("Browse…").click();
+    h.run();
+    assert!(h.state().picker.is_browsing(), "the in-app browser opens");
+    // A folder is chosen (no save-file name field, no export.obj).
+    h.get_by_label("Use this folder").click();
+    h.run();
+    let export = &h.state().state.export;
+    assert_eq!(export.format, ExportFormat::ObjSequence);
+    assert!(
+        !export.path.ends_with(".obj"),
+        "the OBJ sequence's folder gets no extension: {}",
+        export.path
+    );
+    assert!(
+        std::path::Path::new(&export.path).is_dir(),
+        "{}",
+        export.path
+    );
+}
