@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use crate::scene::config::{AvatarSource, GarmentSource, MotionSource, SceneConfig};
 use crate::train::retention::{DiskUsage, Retention};
-use crate::train::run_dir::garment_fingerprint;
+use crate::train::trained::refuse_changed_parts;
 use crate::train::{RunDir, TrainedModel, load_trained};
 
 use super::background::BackgroundJob;
@@ -165,7 +165,8 @@ impl AppState {
     /// (avatar, garment, motions with their splits) and settings (fabric, effects, training);
     /// otherwise (a project reopening its run) it keeps its settings, takes the run's scene
     /// when the run was trained on the same files, and otherwise shows the weights only when
-    /// they were trained on its garment. Refused while a training runs.
+    /// they were trained on its garment (with its skin weights) and avatar. Refused while a
+    /// training runs.
     pub fn open_run(&mut self, path: &Path, replace_scene: bool) -> bool {
         if self.training.state().is_active() {
             self.message(Level::Error, "stop the training before opening another run");
@@ -258,22 +259,30 @@ impl AppState {
                     return;
                 }
             }
-        } else if self
-            .scene
-            .garment
-            .as_ref()
-            .is_none_or(|g| garment_fingerprint(g) != meta.garment_fingerprint)
-        {
-            self.message(
-                Level::Warning,
-                format!(
-                    "the run was trained on another garment ('{}'); open it with File > Open run \
-                     to see its own scene: {}",
-                    meta.garment_name,
-                    run.root.display()
-                ),
-            );
-            return;
+        } else {
+            // The weights alone, on the project's own parts: only when they are the garment
+            // (with its skin weights) and the avatar the run was trained on.
+            let refused = match &self.scene.garment {
+                Some(garment) => {
+                    refuse_changed_parts(&meta, &self.scene.avatar, garment, &run.root)
+                        .err()
+                        .map(|e| e.to_string())
+                }
+                None => Some(format!(
+                    "the project has no garment; the run was trained on '{}'",
+                    meta.garment_name
+                )),
+            };
+            if let Some(why) = refused {
+                self.message(
+                    Level::Warning,
+                    format!(
+                        "the run's weights do not fit the project's scene ({why}); open it with \
+                         File > Open run to see its own scene"
+                    ),
+                );
+                return;
+            }
         }
         self.training
             .show_run(run.root.clone(), step, run.history(), Arc::new(artifact));

@@ -7,7 +7,7 @@ use burn::module::Module;
 use burn::tensor::Bytes;
 
 use crate::model::{ClothNet, InferenceEngine, InferenceOptions, InferenceWeights, ModelArtifact};
-use crate::scene::Scene;
+use crate::scene::{Avatar, Garment, Scene};
 
 use super::checkpoint::MODEL_FILE;
 use super::resume::recorded_scene;
@@ -115,11 +115,24 @@ pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
 /// Refuses a recorded scene that no longer rebuilds what the run was trained on: another
 /// garment, another avatar, or the garment with other skin weights (smoothing passes).
 fn refuse_changed_scene(meta: &RunMeta, scene: &Scene, root: &Path) -> Result<(), TrainError> {
-    if garment_fingerprint(&scene.garment) != meta.garment_fingerprint {
+    refuse_changed_parts(meta, &scene.avatar, &scene.garment, root)
+}
+
+/// Refuses an avatar and garment that are not those the run at `root` was trained on (see
+/// [`RunMeta`]'s fingerprints): another garment, another avatar, or the garment with other
+/// skin weights. The app checks a project's own parts with it before showing a run's weights
+/// on them.
+pub(crate) fn refuse_changed_parts(
+    meta: &RunMeta,
+    avatar: &Avatar,
+    garment: &Garment,
+    root: &Path,
+) -> Result<(), TrainError> {
+    if garment_fingerprint(garment) != meta.garment_fingerprint {
         return Err(TrainError::Checkpoint(format!(
             "the garment changed since training: the scene's garment '{}' no longer matches \
              the one the run was trained on ('{}', {} vertices): {}",
-            scene.garment.name,
+            garment.name,
             meta.garment_name,
             meta.garment_vertices,
             root.display()
@@ -127,24 +140,24 @@ fn refuse_changed_scene(meta: &RunMeta, scene: &Scene, root: &Path) -> Result<()
     }
     if meta
         .avatar_fingerprint
-        .is_some_and(|f| f != avatar_fingerprint(&scene.avatar))
+        .is_some_and(|f| f != avatar_fingerprint(avatar))
     {
         return Err(TrainError::Checkpoint(format!(
             "the avatar changed since training: the scene's avatar '{}' no longer matches the \
              one the run was trained on (the garment is unchanged): {}",
-            scene.avatar.name,
+            avatar.name,
             root.display()
         )));
     }
     if meta
         .garment_skin_fingerprint
-        .is_some_and(|f| f != garment_skin_fingerprint(&scene.garment))
+        .is_some_and(|f| f != garment_skin_fingerprint(garment))
     {
         return Err(TrainError::Checkpoint(format!(
             "the garment's skin weights changed since training: the scene rebuilds '{}' with \
              {} smoothing passes, not with the weights the run was trained on: {}",
-            scene.garment.name,
-            scene.garment.smoothing_passes,
+            garment.name,
+            garment.smoothing_passes,
             root.display()
         )));
     }

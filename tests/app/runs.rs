@@ -9,12 +9,14 @@ use std::time::Duration;
 use egui_kittest::Harness;
 use egui_kittest::kittest::{NodeT, Queryable};
 use neural_cloth::app::file_picker::{DialogMode, desktop_dialog_possible};
+use neural_cloth::app::project::{ProjectFile, SceneSources};
 use neural_cloth::app::runs_panel::Confirm;
 use neural_cloth::app::{AppOptions, NeuralClothApp, TrainingState};
 use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
 use neural_cloth::scene::config::SceneConfig;
 use neural_cloth::scene::procedural::build_builtin;
 use neural_cloth::train::retention::Retention;
+use neural_cloth::train::run_dir::garment_fingerprint;
 use neural_cloth::train::{RunDir, RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer};
 
 use super::{harness_with, options};
@@ -222,6 +224,60 @@ fn a_reopened_project_takes_its_runs_retention_and_has_nothing_to_save() {
     assert!(
         !s.has_unsaved_changes(),
         "a freshly opened project has nothing to save"
+    );
+}
+
+#[test]
+fn a_project_shows_a_runs_weights_only_on_the_garment_skin_it_was_trained_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    train_tiny_run(&run, 2);
+    // The run's garment as a file: the same mesh, but loaded it gets other skin weights (the
+    // app smooths a file's weights 3 times, the built-in t-shirt's 5 times).
+    let scene = build_builtin(&SceneConfig::from_toml_str(TINY).unwrap()).unwrap();
+    let garment = dir.path().join("garment.obj");
+    let text = neural_cloth::io::export::obj_seq::obj_text(
+        &scene.garment.mesh.positions,
+        &scene.garment.mesh.faces,
+        None,
+        "garment",
+    );
+    std::fs::write(&garment, text).unwrap();
+    let project = dir.path().join("p.toml");
+    ProjectFile {
+        scene: SceneSources {
+            garment: Some(garment.clone()),
+            ..Default::default()
+        },
+        run: Some(run.clone()),
+        ..Default::default()
+    }
+    .save(&project)
+    .unwrap();
+
+    let mut h = in_app_harness();
+    assert!(h.state_mut().open_project(&project));
+    assert!(h.state_mut().state.wait_for_run(Duration::from_secs(120)));
+    h.run();
+    let s = &h.state().state;
+    let shown = s.scene.garment.as_ref().unwrap();
+    assert_eq!(
+        garment_fingerprint(shown),
+        garment_fingerprint(&scene.garment),
+        "the same mesh"
+    );
+    assert!(
+        !s.preview.describe().starts_with("model at step") && s.training.run_dir.is_none(),
+        "the weights are not shown: {} {:?}",
+        s.preview.describe(),
+        s.messages
+    );
+    assert!(
+        s.messages
+            .iter()
+            .any(|m| m.text.contains("skin weights changed")),
+        "{:?}",
+        s.messages
     );
 }
 
