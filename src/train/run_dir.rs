@@ -80,15 +80,28 @@ pub struct RunDir {
     pub root: PathBuf,
 }
 
+/// FNV-1a hash state for the fingerprints below.
+struct Fnv(u64);
+
+impl Default for Fnv {
+    fn default() -> Self {
+        Self(0xcbf29ce484222325)
+    }
+}
+
+impl Fnv {
+    fn eat(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.0 ^= u64::from(*b);
+            self.0 = self.0.wrapping_mul(0x100000001b3);
+        }
+    }
+}
+
 /// FNV-1a fingerprint of a garment's template positions and faces.
 pub fn garment_fingerprint(garment: &Garment) -> u64 {
-    let mut h: u64 = 0xcbf29ce484222325;
-    let mut eat = |bytes: &[u8]| {
-        for b in bytes {
-            h ^= u64::from(*b);
-            h = h.wrapping_mul(0x100000001b3);
-        }
-    };
+    let mut fnv = Fnv::default();
+    let mut eat = |bytes: &[u8]| fnv.eat(bytes);
     for p in &garment.mesh.positions {
         for c in p.iter() {
             eat(&c.to_le_bytes());
@@ -99,19 +112,14 @@ pub fn garment_fingerprint(garment: &Garment) -> u64 {
             eat(&i.to_le_bytes());
         }
     }
-    h
+    fnv.0
 }
 
 /// FNV-1a fingerprint of a garment's skin weights (joints and weights of every vertex) and
 /// the smoothing passes they were made with.
 pub fn garment_skin_fingerprint(garment: &Garment) -> u64 {
-    let mut h: u64 = 0xcbf29ce484222325;
-    let mut eat = |bytes: &[u8]| {
-        for b in bytes {
-            h ^= u64::from(*b);
-            h = h.wrapping_mul(0x100000001b3);
-        }
-    };
+    let mut fnv = Fnv::default();
+    let mut eat = |bytes: &[u8]| fnv.eat(bytes);
     eat(&(garment.smoothing_passes as u64).to_le_bytes());
     for (joints, weights) in garment.skin.joints.iter().zip(&garment.skin.weights) {
         for j in joints {
@@ -121,19 +129,14 @@ pub fn garment_skin_fingerprint(garment: &Garment) -> u64 {
             eat(&w.to_le_bytes());
         }
     }
-    h
+    fnv.0
 }
 
 /// FNV-1a fingerprint of an avatar: its joint names and parents, the rest-pose joint
 /// positions, and the rest body's positions and faces.
 pub fn avatar_fingerprint(avatar: &Avatar) -> u64 {
-    let mut h: u64 = 0xcbf29ce484222325;
-    let mut eat = |bytes: &[u8]| {
-        for b in bytes {
-            h ^= u64::from(*b);
-            h = h.wrapping_mul(0x100000001b3);
-        }
-    };
+    let mut fnv = Fnv::default();
+    let mut eat = |bytes: &[u8]| fnv.eat(bytes);
     let skeleton = &avatar.skeleton;
     for (name, parent) in skeleton.names.iter().zip(&skeleton.parents) {
         eat(name.as_bytes());
@@ -154,7 +157,7 @@ pub fn avatar_fingerprint(avatar: &Avatar) -> u64 {
             eat(&i.to_le_bytes());
         }
     }
-    h
+    fnv.0
 }
 
 impl RunDir {
