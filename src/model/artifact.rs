@@ -9,7 +9,6 @@ use crate::scene::{Avatar, Garment};
 use super::ModelError;
 use super::descriptors::DescriptorConfig;
 use super::inference::{InferenceEngine, InferenceOptions, InferenceScene};
-use super::network::EncoderKind;
 use super::weights::InferenceWeights;
 
 /// Weights of a cloth network with the settings they were trained with.
@@ -31,11 +30,6 @@ impl ModelArtifact {
             descriptors,
             fps,
         }
-    }
-
-    /// The encoder layout of the weights.
-    pub fn encoder(&self) -> EncoderKind {
-        self.weights.kind
     }
 
     /// Whether `engine` takes poses as these weights need (same descriptor settings and frame
