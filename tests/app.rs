@@ -20,6 +20,9 @@ mod fit;
 mod runs;
 #[path = "app/status.rs"]
 mod status;
+#[path = "common/tiny_scene.rs"]
+mod tiny_scene;
+use tiny_scene::TINY;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -36,28 +36,9 @@ mod disk_full;
 mod fixture;
 #[path = "pipeline/resume.rs"]
 mod resume;
-
-const TINY: &str = r#"
-name = "tiny"
-training_fps = 30.0
-[avatar]
-builtin = "mannequin"
-[garment]
-builtin = "tshirt"
-resolution = 400
-[[motions]]
-builtin = "walk"
-duration_secs = 1.0
-[[motions]]
-builtin = "spin"
-duration_secs = 1.0
-[[motions]]
-builtin = "turn"
-duration_secs = 1.0
-split = "validation"
-[fabric]
-preset = "default"
-"#;
+#[path = "common/tiny_scene.rs"]
+mod tiny_scene;
+use tiny_scene::TINY;
 
 fn tiny() -> (Scene, SceneConfig) {
     let config = SceneConfig::from_toml_str(TINY).unwrap();

@@ -19,31 +19,7 @@ use neural_cloth::train::retention::Retention;
 use neural_cloth::train::run_dir::garment_fingerprint;
 use neural_cloth::train::{RunDir, RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer};
 
-use super::{harness_with, options};
-
-/// A small built-in scene: the mannequin in a coarse t-shirt, two short training motions and
-/// a validation one.
-const TINY: &str = r#"
-name = "tiny"
-training_fps = 30.0
-[avatar]
-builtin = "mannequin"
-[garment]
-builtin = "tshirt"
-resolution = 400
-[[motions]]
-builtin = "walk"
-duration_secs = 1.0
-[[motions]]
-builtin = "spin"
-duration_secs = 1.0
-[[motions]]
-builtin = "turn"
-duration_secs = 1.0
-split = "validation"
-[fabric]
-preset = "default"
-"#;
+use super::{TINY, harness_with, options};
 
 /// Trains the app's default network on [`TINY`] for `steps` steps into `run`, with a
 /// checkpoint and a validation pass every step.
