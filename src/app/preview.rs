@@ -233,16 +233,7 @@ impl Preview {
         let engine = self.engine.as_mut()?;
         if let Some((step, model)) = self.pending.take() {
             self.generation += 1;
-            // Weights trained at another rate or with other descriptors need their own engine.
-            let swapped = if model.fits_engine(engine) {
-                engine.set_weights(model.weights.clone())
-            } else {
-                let options = engine.options().clone();
-                model
-                    .engine(avatar, garment, options)
-                    .map(|fresh| *engine = fresh)
-            };
-            match swapped {
+            match model.swap_into(engine, avatar, garment) {
                 Ok(()) => {
                     self.source = Some(WeightsSource::Snapshot(step));
                     self.fed = None;

@@ -200,7 +200,7 @@ impl Preview {
     /// Swaps in a snapshot (building the engine on the first).
     fn set_weights(&mut self, model: Arc<ModelArtifact>) -> anyhow::Result<()> {
         match &mut self.engine {
-            Some(engine) => engine.set_weights(model.weights.clone())?,
+            Some(engine) => model.swap_into(engine, &self.scene.avatar, &self.scene.garment)?,
             None => {
                 self.engine =
                     Some(model.engine(&self.scene.avatar, &self.scene.garment, Self::options())?)

@@ -38,6 +38,22 @@ impl ModelArtifact {
         self.descriptors == *engine.descriptors() && self.fps.to_bits() == engine.fps().to_bits()
     }
 
+    /// Runs these weights in `engine`: swapped in where the engine takes poses as they need
+    /// ([`Self::fits_engine`]), otherwise a fresh engine with the same options replaces it
+    /// (weights trained at another rate or with other descriptors).
+    pub fn swap_into(
+        &self,
+        engine: &mut InferenceEngine,
+        avatar: &Avatar,
+        garment: &Garment,
+    ) -> Result<(), ModelError> {
+        if self.fits_engine(engine) {
+            return engine.set_weights(self.weights.clone());
+        }
+        *engine = self.engine(avatar, garment, engine.options().clone())?;
+        Ok(())
+    }
+
     /// An engine running a copy of these weights for `garment` on `avatar`.
     pub fn engine(
         &self,
