@@ -6,7 +6,8 @@
 //!
 //! Layout: this file holds the shared helpers and most tests; the export dialog's tests live in
 //! `app/export_dialog.rs`, start-up and the status bar in `app/status.rs`, the readable metric
-//! curves in `app/curves.rs`, "Fit garment" in `app/fit.rs` (one test binary).
+//! curves in `app/curves.rs`, "Fit garment" in `app/fit.rs`, runs in `app/runs.rs`, project
+//! files and the scene description in `app/projects.rs` (one test binary).
 //! The memory-leak tests are in `tests/leak.rs`, a binary of their own so that no other test
 //! shares their process's resident memory.
 
@@ -16,6 +17,8 @@ mod curves;
 mod export_dialog;
 #[path = "app/fit.rs"]
 mod fit;
+#[path = "app/projects.rs"]
+mod projects;
 #[path = "app/runs.rs"]
 mod runs;
 #[path = "app/status.rs"]
@@ -391,7 +394,7 @@ fn project_save_and_open_round_trip() {
     }
     assert!(h.state_mut().open_project(&file));
     let s = &h.state().state;
-    assert_eq!(s.fabric, FabricParams::preset("denim").expect("preset"));
+    assert_eq!(*s.fabric(), FabricParams::preset("denim").expect("preset"));
     assert_eq!(
         (s.w, s.train_config.window_secs, s.draw.wireframe),
         (1.7, 1.25, true)
@@ -515,7 +518,7 @@ fn train_pause_resume_stop_through_the_buttons() {
         .flatten();
     assert_eq!(
         request_fps,
-        Some(h.state().state.train_config.fps),
+        Some(h.state().state.scene.config.training_fps),
         "the launcher got the app's settings"
     );
     step_until(&mut h, "training metrics", |app| {

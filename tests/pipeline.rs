@@ -141,7 +141,7 @@ fn training_lowers_the_loss_and_collisions() {
 fn inertia_gradient_reaches_only_the_current_frame_unless_snug() {
     let (scene, _) = tiny();
     let device = neural_cloth::train::device_for(neural_cloth::train::BackendKind::Cpu, true);
-    let fabric = FabricParams::from_table(&scene.fabric).unwrap();
+    let fabric = scene.fabric.clone();
     let terms = PhysicsTerms::new(&scene.garment, &fabric, &scene.effects, &device).unwrap();
     let v = scene.garment.vertex_count();
     let base: Vec<f32> = scene
@@ -830,8 +830,8 @@ fn a_dead_decoder_is_reported_and_revived() {
 mod compare {
     use std::path::Path;
 
+    use neural_cloth::physics::Effects;
     use neural_cloth::physics::simulator::{SimOptions, simulate};
-    use neural_cloth::physics::{Effects, FabricParams};
     use neural_cloth::scene::config::SceneConfig;
     use neural_cloth::scene::procedural::build_builtin;
     use neural_cloth::train::compare::{
@@ -963,7 +963,7 @@ pinning = true
     fn the_simulator_against_itself_is_at_distance_zero() {
         let config = SceneConfig::from_toml_str(SKIRT).unwrap();
         let scene = build_builtin(&config).unwrap();
-        let fabric = FabricParams::from_table(&scene.fabric).unwrap();
+        let fabric = scene.fabric.clone();
         let motion = scene.motions[0].0.resample(30.0).unwrap();
         let device = device_for(BackendKind::Cpu, false);
         let sim_options = SimOptions {

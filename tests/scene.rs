@@ -507,10 +507,7 @@ fn default_scene_builds_from_the_asset() {
     assert_eq!(scene.name, "default");
     assert_eq!(scene.motions.len(), 6);
     assert_eq!(scene.training_fps, 30.0);
-    assert_eq!(
-        scene.fabric.get("preset").and_then(|v| v.as_str()),
-        Some("default")
-    );
+    assert_eq!(scene.fabric.preset_name(), Some("default"));
     assert!(scene.effects.dynamics && !scene.effects.pinning);
     let names: Vec<&str> = scene.motions.iter().map(|(m, _)| m.name.as_str()).collect();
     for kind in MotionKind::ALL {

@@ -192,7 +192,7 @@ impl NeuralClothApp {
         ExportEstimate::of(
             settings,
             motion,
-            self.state.train_config.fps,
+            self.state.scene.config.training_fps,
             garment,
             avatar,
         )
@@ -216,7 +216,7 @@ impl NeuralClothApp {
                         .as_ref()
                         .map(|(_, w)| w.clone()),
                     w: self.state.w,
-                    fps: self.state.train_config.fps,
+                    fps: self.state.scene.config.training_fps,
                     format: settings.format,
                     path: PathBuf::from(settings.path.trim()),
                     preset: settings.preset.filter(|_| settings.format.takes_preset()),

@@ -110,7 +110,7 @@ impl FileBrowser {
                 || self
                     .extensions
                     .iter()
-                    .any(|x| super::loading::extension(Path::new(&e.name)) == *x)
+                    .any(|x| crate::io::scene_loader::extension(Path::new(&e.name)) == *x)
         };
         match &self.entries {
             Ok(entries) if self.choose == Choose::Folder => {

@@ -94,7 +94,7 @@ pub fn matches_extension(path: &Path, extensions: &[&str]) -> bool {
         || extensions.is_empty()
         || extensions
             .iter()
-            .any(|e| super::loading::extension(path) == *e)
+            .any(|e| crate::io::scene_loader::extension(path) == *e)
 }
 
 /// True when this session may have a desktop file-dialog service: on Linux and the BSDs rfd

@@ -89,7 +89,7 @@ impl AppState {
         if !typed.is_empty() {
             return Some(PathBuf::from(typed));
         }
-        self.scene.sources.garment.clone()
+        self.scene_file(super::panels::LoadKind::Garment)
     }
 
     /// Shows the outcome of a fit: loads the fitted garment (the viewport then shows it on

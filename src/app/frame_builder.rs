@@ -91,8 +91,8 @@ pub fn build_frame(state: &mut AppState) -> SceneFrame {
                 m,
                 time,
                 state.w,
-                state.train_config.fps,
-                state.effects.dynamics,
+                state.scene.config.training_fps,
+                state.scene.config.effects.dynamics,
             ),
             None => None,
         };

@@ -18,7 +18,6 @@ pub mod file_browser;
 pub mod file_picker;
 pub mod fit_panel;
 pub mod frame_builder;
-pub mod loading;
 pub mod metrics;
 pub mod panels;
 pub mod playback;
@@ -26,8 +25,10 @@ pub mod plot_panel;
 pub mod preview;
 pub mod project;
 pub mod project_io;
+pub mod project_v1;
 pub mod runs;
 pub mod runs_panel;
+pub mod scene_edit;
 pub mod sim_check;
 pub mod state;
 pub mod timeline;
@@ -57,10 +58,14 @@ pub struct AppOptions {
     pub file_dialog: file_picker::DialogMode,
 }
 
-/// The built-in default scene: the procedural mannequin, its t-shirt and motions.
+/// The built-in default scene: the procedural mannequin, its t-shirt and motions
+/// ([`crate::scene::SceneConfig::default_scene`], loaded by the io scene loader).
 pub fn default_scene() -> anyhow::Result<SceneParts> {
-    let scene = crate::scene::procedural::default_scene()?;
-    SceneParts::from_scene(scene).map_err(|e| anyhow::anyhow!("default scene: {e}"))
+    let config = crate::scene::SceneConfig::default_scene();
+    let here = std::path::Path::new(".");
+    let loaded = crate::io::scene_loader::load_scene(&config, here, here)
+        .map_err(|e| anyhow::anyhow!("default scene: {e}"))?;
+    Ok(SceneParts::from_scene(loaded.scene, config))
 }
 
 /// The eframe application.
@@ -126,7 +131,7 @@ impl NeuralClothApp {
         app.state.runs.notify = Some(notify);
         app.state.mark_saved();
         if let Some(p) = options.project {
-            app.state.open_project(&p, || default_scene().ok());
+            app.state.open_project(&p);
         }
         Ok(app)
     }

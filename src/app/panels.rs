@@ -88,11 +88,7 @@ impl NeuralClothApp {
                 self.load_file(kind, &PathBuf::from(typed));
             }
             if ui.button("...").on_hover_text(kind.title()).clicked() {
-                let start = match kind {
-                    LoadKind::Avatar => self.state.scene.sources.avatar.clone(),
-                    LoadKind::Garment => self.state.scene.sources.garment.clone(),
-                    LoadKind::Motion => self.state.scene.sources.motions.last().cloned(),
-                };
+                let start = self.state.scene_file(kind);
                 self.picker
                     .request(PickPurpose::Load(kind), start.as_deref());
             }
@@ -171,14 +167,12 @@ impl NeuralClothApp {
             .default_open(true)
             .show(ui, |ui| {
                 let mut preset = None;
+                let current = self.state.fabric_preset();
                 egui::ComboBox::from_label("preset")
-                    .selected_text(self.state.fabric_preset.clone())
+                    .selected_text(current)
                     .show_ui(ui, |ui| {
                         for name in PRESET_NAMES {
-                            if ui
-                                .selectable_label(self.state.fabric_preset == name, name)
-                                .clicked()
-                            {
+                            if ui.selectable_label(current == name, name).clicked() {
                                 preset = Some(name);
                             }
                         }
@@ -186,7 +180,7 @@ impl NeuralClothApp {
                 if let Some(name) = preset {
                     self.state.apply_preset(name);
                 }
-                let f = &mut self.state.fabric;
+                let f = &mut self.state.scene.config.fabric;
                 let mut changed = false;
                 changed |= ui
                     .add(
@@ -222,7 +216,6 @@ impl NeuralClothApp {
                     changed = true;
                 }
                 if changed {
-                    self.state.fabric_preset = "custom".into();
                     self.state.fabric_changed();
                 }
             });
@@ -235,7 +228,7 @@ impl NeuralClothApp {
             .show(ui, |ui| {
                 let active = self.state.training.state().is_active();
                 ui.add_enabled_ui(!active, |ui| {
-                    let e = &mut self.state.effects;
+                    let e = &mut self.state.scene.config.effects;
                     let mut changed = false;
                     changed |= ui.checkbox(&mut e.gravity, "gravity").changed();
                     changed |= ui.checkbox(&mut e.bending, "bending").changed();

@@ -37,7 +37,7 @@ impl NeuralClothApp {
                 }
                 ui.add_enabled(
                     !state.is_active(),
-                    egui::Slider::new(&mut self.state.train_config.fps, 5.0..=120.0)
+                    egui::Slider::new(&mut self.state.scene.config.training_fps, 5.0..=120.0)
                         .integer()
                         .text("fps"),
                 );

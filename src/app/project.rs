@@ -1,21 +1,23 @@
-//! Project files: the whole setup (scene sources, fabric, effects, training config, runs
-//! folder, the run shown, view settings) as one human-edited TOML file, plus the recent-files list
-//! (machine-written JSON). Paths inside a project are stored relative to the project file
-//! when they lie below its folder, and resolved against it when opened.
+//! Project files: the whole setup (the scene description, the training config, runs folder,
+//! the run shown, view settings) as one human-edited TOML file, plus the recent-files list
+//! (machine-written JSON). The scene is a [`SceneConfig`], the same description a scene file
+//! holds and a run records, under `[scene]`. Paths inside a project are stored relative to the
+//! project file when they lie below its folder, and resolved against it when opened. Files of
+//! the first layout (version 1) are read and converted ([`super::project_v1`]).
 
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::physics::FabricParams;
 use crate::render::DrawOptions;
-use crate::scene::Effects;
+use crate::scene::SceneConfig;
 use crate::train::TrainConfig;
 
 use super::metrics::XAxis;
 
-/// Current project format version.
-pub const PROJECT_VERSION: u32 = 1;
+/// Current project format version (2: the scene is a [`SceneConfig`]; 1: scene sources,
+/// fabric and effects apart, still read).
+pub const PROJECT_VERSION: u32 = 2;
 /// Entries kept in the recent-files list.
 pub const MAX_RECENT: usize = 10;
 
@@ -50,20 +52,6 @@ pub enum ProjectError {
     },
 }
 
-/// Where the scene comes from. `None` means the built-in default.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct SceneSources {
-    /// Avatar file (glTF/GLB); None = built-in mannequin.
-    pub avatar: Option<PathBuf>,
-    /// Garment file (OBJ/glTF); None = built-in garment.
-    pub garment: Option<PathBuf>,
-    /// Extra BVH motions retargeted onto the avatar, in load order.
-    pub motions: Vec<PathBuf>,
-    /// Name of the fabric preset the fabric started from, for display.
-    pub fabric_preset: Option<String>,
-}
-
 /// Viewport and panel settings saved with a project.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -95,13 +83,11 @@ impl Default for ViewSettings {
 pub struct ProjectFile {
     /// Format version, [`PROJECT_VERSION`].
     pub version: u32,
-    /// Scene sources.
-    pub scene: SceneSources,
-    /// Fabric parameters.
-    pub fabric: FabricParams,
-    /// Effects the scene declares.
-    pub effects: Effects,
-    /// Training configuration (window, fps, batch, schedule).
+    /// The scene: avatar, garment and motions (built in or files, motions with their splits),
+    /// effects, fabric and the training frame rate.
+    pub scene: SceneConfig,
+    /// Training configuration (window, batch, schedule); its `fps` is written equal to
+    /// `scene.training_fps` and replaced by it when read.
     pub training: TrainConfig,
     /// Folder new runs are written under; None = `runs/` beside the project file. Read from
     /// `run_dir` too (its name in earlier files).
@@ -121,9 +107,7 @@ impl Default for ProjectFile {
     fn default() -> Self {
         Self {
             version: PROJECT_VERSION,
-            scene: SceneSources::default(),
-            fabric: FabricParams::default(),
-            effects: Effects::default(),
+            scene: SceneConfig::default_scene(),
             training: TrainConfig::default(),
             runs_folder: None,
             run: None,
@@ -171,15 +155,8 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ProjectError> {
 impl ProjectFile {
     /// Applies `f` to every path in the project.
     fn map_paths(&mut self, f: impl Fn(&Path) -> PathBuf) {
-        let s = &mut self.scene;
-        for p in s
-            .avatar
-            .iter_mut()
-            .chain(s.garment.iter_mut())
-            .chain(s.motions.iter_mut())
-            .chain(self.runs_folder.iter_mut())
-            .chain(self.run.iter_mut())
-        {
+        self.scene.map_paths(&f);
+        for p in self.runs_folder.iter_mut().chain(self.run.iter_mut()) {
             *p = f(p);
         }
     }
@@ -194,6 +171,7 @@ impl ProjectFile {
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let base = std::path::absolute(&base).unwrap_or(base);
         let mut copy = self.clone();
+        copy.training.fps = copy.scene.training_fps;
         copy.map_paths(|p| {
             relative_to(
                 &std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()),
@@ -207,8 +185,8 @@ impl ProjectFile {
         write_atomic(path, format!("# neural-cloth project\n{text}").as_bytes())
     }
 
-    /// Reads a project, checks its version and values, and resolves its paths against its
-    /// folder.
+    /// Reads a project (converting the version-1 layout), checks its version and values, and
+    /// resolves its paths against its folder.
     pub fn open(path: &Path) -> Result<Self, ProjectError> {
         let text = std::fs::read_to_string(path).map_err(|source| ProjectError::Read {
             source,
@@ -218,35 +196,55 @@ impl ProjectFile {
             reason,
             path: path.to_path_buf(),
         };
-        let mut project: ProjectFile = toml::from_str(&text).map_err(|e| parse(e.to_string()))?;
-        if project.version != PROJECT_VERSION {
-            return Err(parse(format!(
-                "version {} (this build reads version {PROJECT_VERSION})",
-                project.version
-            )));
-        }
-        project
-            .fabric
-            .validate()
-            .map_err(|e| parse(format!("fabric: {e}")))?;
-        project
-            .training
-            .validate()
-            .map_err(|e| parse(format!("training: {e}")))?;
-        let w = project.view.w;
-        if !(w.is_finite() && (0.0..=2.0).contains(&w)) {
-            return Err(parse(format!("view.w = {w} is outside [0, 2]")));
-        }
-        let speed = project.view.playback_speed;
-        if !speed.is_finite() {
-            // The app clamps the speed into its range, and a clamp keeps NaN.
-            return Err(parse(format!(
-                "view.playback_speed = {speed} is not a finite number"
-            )));
-        }
+        let table: toml::Table = text
+            .parse()
+            .map_err(|e: toml::de::Error| parse(e.to_string()))?;
+        let version = match table.get("version") {
+            None => Some(PROJECT_VERSION),
+            Some(v) => v.as_integer().and_then(|v| u32::try_from(v).ok()),
+        };
+        let mut project = match version {
+            Some(1) => super::project_v1::convert(table).map_err(parse)?,
+            Some(PROJECT_VERSION) => toml::Value::Table(table)
+                .try_into::<ProjectFile>()
+                .map_err(|e| parse(e.to_string()))?,
+            _ => {
+                return Err(parse(format!(
+                    "version {} (this build reads versions 1 to {PROJECT_VERSION})",
+                    table
+                        .get("version")
+                        .map_or_else(String::new, |v| v.to_string())
+                )));
+            }
+        };
+        project.training.fps = project.scene.training_fps;
+        project.check().map_err(parse)?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         project.map_paths(|p| resolve(p, &base));
         Ok(project)
+    }
+
+    /// Checks the values a project may hold (a scene being edited may not be trainable yet:
+    /// no motion, a garment dropped by another avatar).
+    fn check(&self) -> Result<(), String> {
+        self.scene
+            .validate_values()
+            .map_err(|e| format!("scene: {e}"))?;
+        self.training
+            .validate()
+            .map_err(|e| format!("training: {e}"))?;
+        let w = self.view.w;
+        if !(w.is_finite() && (0.0..=2.0).contains(&w)) {
+            return Err(format!("view.w = {w} is outside [0, 2]"));
+        }
+        let speed = self.view.playback_speed;
+        if !speed.is_finite() {
+            // The app clamps the speed into its range, and a clamp keeps NaN.
+            return Err(format!(
+                "view.playback_speed = {speed} is not a finite number"
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -312,14 +310,28 @@ impl RecentFiles {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::Split;
+    use crate::scene::config::{GarmentSource, MotionSource};
+    use crate::scene::procedural::GarmentKind;
 
     #[test]
     fn round_trip_keeps_everything_and_relativises_paths() {
         let dir = tempfile::tempdir().unwrap();
         let mut p = ProjectFile::default();
-        p.scene.garment = Some(dir.path().join("garments/shirt.obj"));
-        p.scene.motions = vec![PathBuf::from("/elsewhere/walk.bvh")];
-        p.fabric.density_kg_per_m2 = 0.3;
+        p.scene.garment = GarmentSource::File {
+            path: dir.path().join("garments/shirt.obj"),
+            units: None,
+            smoothing_passes: Some(30),
+        };
+        p.scene.motions.push(MotionSource::File {
+            path: PathBuf::from("/elsewhere/walk.bvh"),
+            units: None,
+            split: Split::Validation,
+            name: None,
+            joint_map: Some(dir.path().join("maps/walk.toml")),
+        });
+        p.scene.fabric.density_kg_per_m2 = 0.3;
+        p.scene.training_fps = 60.0;
         p.training.window_secs = 1.0;
         p.training.max_steps = Some(500);
         p.view.w = 1.5;
@@ -329,13 +341,31 @@ mod tests {
         p.save(&file).unwrap();
         let text = std::fs::read_to_string(&file).unwrap();
         assert!(
-            text.contains("garments/shirt.obj")
-                && text.contains("runs/run-1")
+            text.contains("\"garments/shirt.obj\"")
+                && text.contains("\"maps/walk.toml\"")
+                && text.contains("\"runs/run-1\"")
                 && !text.contains(&*dir.path().to_string_lossy()),
             "{text}"
         );
         let back = ProjectFile::open(&file).unwrap();
+        // The training rate has one home, the scene's.
+        p.training.fps = 60.0;
         assert_eq!(back, p);
+    }
+
+    #[test]
+    fn the_built_in_garment_is_saved_by_kind() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut p = ProjectFile::default();
+        p.scene.garment = GarmentSource::Builtin {
+            builtin: GarmentKind::Skirt,
+            resolution: 1200,
+            smoothing_passes: None,
+        };
+        let file = dir.path().join("skirt.toml");
+        p.save(&file).unwrap();
+        let back = ProjectFile::open(&file).unwrap();
+        assert_eq!(back.scene.garment, p.scene.garment);
     }
 
     #[test]

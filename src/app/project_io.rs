@@ -3,19 +3,14 @@
 
 use std::path::Path;
 
-use super::project::{ProjectError, ProjectFile, SceneSources, ViewSettings};
-use super::state::{AppState, Level, SceneParts};
+use super::project::{ProjectError, ProjectFile, ViewSettings};
+use super::state::{AppState, Level};
 
 impl AppState {
     /// The project file describing the current setup.
     pub fn to_project(&self) -> ProjectFile {
         ProjectFile {
-            scene: SceneSources {
-                fabric_preset: Some(self.fabric_preset.clone()),
-                ..self.scene.sources.clone()
-            },
-            fabric: self.fabric.clone(),
-            effects: self.effects,
+            scene: self.scene.config.clone(),
             training: self.train_config.clone(),
             runs_folder: self.runs.folder.clone(),
             run: self.current_run(),
@@ -56,15 +51,12 @@ impl AppState {
         }
     }
 
-    /// Opens a project: loads its avatar, garment and motions (the built-in scene parts where
-    /// it names none), applies its settings and reopens its run (in the background). A file that does not read as a project is
-    /// refused before anything changes (the running training and the scene stay); otherwise
-    /// the training is reset first. Load errors are shown; what loads is kept.
-    pub fn open_project(
-        &mut self,
-        path: &Path,
-        default_scene: impl FnOnce() -> Option<SceneParts>,
-    ) -> bool {
+    /// Opens a project (a version-1 file is converted): shows its scene (avatar, garment and
+    /// motions, built in or files, through the io scene loader), applies its settings and
+    /// reopens its run (in the background). A file that does not read as a project is refused
+    /// before anything changes (the running training and the scene stay); otherwise the
+    /// training is reset first. Load errors are shown; what loads is kept.
+    pub fn open_project(&mut self, path: &Path) -> bool {
         let project = match ProjectFile::open(path) {
             Ok(p) => p,
             Err(e) => {
@@ -73,13 +65,7 @@ impl AppState {
             }
         };
         self.training.reset();
-        self.fabric = project.fabric.clone();
-        self.fabric_preset = project
-            .scene
-            .fabric_preset
-            .clone()
-            .unwrap_or_else(|| "custom".into());
-        self.effects = project.effects;
+        self.project_path = Some(path.to_path_buf());
         self.train_config = project.training.clone();
         self.runs.folder = project.runs_folder.clone();
         // Retention is the run's own (RUN/retention.json, read when the run opens); new runs
@@ -93,24 +79,12 @@ impl AppState {
             .view
             .playback_speed
             .clamp(super::playback::MIN_SPEED, super::playback::MAX_SPEED);
-        if (project.scene.avatar.is_none() || project.scene.garment.is_none())
-            && let Some(parts) = default_scene()
-        {
-            self.scene.name = parts.name;
-            self.scene.avatar = parts.avatar;
-            self.scene.splits = parts.splits;
-            self.scene.garment = parts.garment;
-            self.scene.sources = SceneSources::default();
-            self.scene_changed();
-        }
-        if let Some(a) = &project.scene.avatar {
-            self.load_avatar(a);
-        }
-        if let Some(g) = &project.scene.garment {
-            self.load_garment(g);
-        }
-        for m in &project.scene.motions {
-            self.load_motion(m);
+        if !self.open_scene(project.scene.clone()) {
+            // The avatar did not load: the scene stays, with the project's settings.
+            let config = &mut self.scene.config;
+            config.fabric = project.scene.fabric.clone();
+            config.effects = project.scene.effects;
+            config.training_fps = project.scene.training_fps;
         }
         let result = self.recent.push(path);
         let opened = self.project_done(path, result, "opened");

@@ -7,13 +7,14 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crate::scene::config::{AvatarSource, GarmentSource, MotionSource, SceneConfig};
+use crate::scene::SceneConfig;
+use crate::train::resume::recorded_config;
 use crate::train::retention::{DiskUsage, Retention};
 use crate::train::trained::refuse_changed_parts;
 use crate::train::{RunDir, TrainedModel, load_trained};
 
 use super::background::BackgroundJob;
-use super::project::{ProjectFile, RecentFiles, SceneSources};
+use super::project::{ProjectFile, RecentFiles};
 use super::state::{AppState, Level, SceneParts};
 
 /// File of the recent-runs list, beside the recent-projects list.
@@ -84,38 +85,10 @@ pub fn user_data_dir() -> Option<PathBuf> {
     Some(data.join("neural-cloth"))
 }
 
-/// The files a run's recorded scene was loaded from (built-in parts: none), as the app keeps
-/// them: the avatar file brings its own motions, so it is not listed among the motions.
-pub fn sources_of_run(run: &RunDir) -> SceneSources {
-    let Some(config) = run
-        .scene_toml()
-        .ok()
-        .and_then(|t| SceneConfig::from_toml_str(&t).ok())
-    else {
-        return SceneSources::default();
-    };
-    let avatar = match &config.avatar {
-        AvatarSource::File { path, .. } => Some(path.clone()),
-        AvatarSource::Builtin { .. } => None,
-    };
-    let garment = match &config.garment {
-        GarmentSource::File { path, .. } => Some(path.clone()),
-        GarmentSource::Builtin { .. } => None,
-    };
-    let motions = config
-        .motions
-        .iter()
-        .filter_map(|m| match m {
-            MotionSource::File { path, .. } if Some(path) != avatar.as_ref() => Some(path.clone()),
-            _ => None,
-        })
-        .collect();
-    SceneSources {
-        avatar,
-        garment,
-        motions,
-        fabric_preset: None,
-    }
+/// Whether two scene descriptions name the same avatar, garment and motions (with their
+/// splits), whatever their name, effects, fabric and training rate.
+fn same_sources(a: &SceneConfig, b: &SceneConfig) -> bool {
+    a.avatar == b.avatar && a.garment == b.garment && a.motions == b.motions
 }
 
 impl AppState {
@@ -231,35 +204,28 @@ impl AppState {
             warnings,
             ..
         } = trained;
-        // The run's scene is the one its weights fit: shown when asked (Open run), and when the
-        // project names the same files (built-in parts keep the run's exact settings).
-        let sources = sources_of_run(&run);
-        let current = &self.scene.sources;
-        let same_files = sources.avatar == current.avatar
-            && sources.garment == current.garment
-            && sources.motions == current.motions;
-        if replace_scene || same_files {
-            match SceneParts::from_scene(scene) {
-                Ok(parts) => {
-                    self.scene.name = parts.name;
-                    self.scene.avatar = parts.avatar;
-                    self.scene.splits = parts.splits;
-                    self.scene.garment = parts.garment;
-                    self.scene.sources = sources;
-                    if replace_scene {
-                        self.effects = meta.effects;
-                        self.fabric = meta.fabric.clone();
-                        self.fabric_preset = "custom".into();
-                        self.train_config = meta.train.clone();
-                    }
-                    self.scene_changed();
-                }
+        // The run's scene is the one its weights fit: shown when asked (Open run). A project
+        // reopening its run shows the weights on its own parts when they are those the run
+        // was trained on: the same sources, or (checked below) the same avatar and garment.
+        let recorded = recorded_config(&run);
+        let same_sources = recorded
+            .as_ref()
+            .is_ok_and(|r| same_sources(r, &self.scene.config));
+        if replace_scene {
+            let mut config = match recorded {
+                Ok(config) => config,
                 Err(e) => {
                     self.message(Level::Error, format!("cannot show the run's scene: {e}"));
                     return;
                 }
-            }
-        } else {
+            };
+            // The settings it trained with, as its run.json records them.
+            config.effects = meta.effects;
+            config.fabric = meta.fabric.clone();
+            config.training_fps = meta.train.fps;
+            self.train_config = meta.train.clone();
+            self.show_parts(SceneParts::from_scene(scene, config));
+        } else if !(same_sources && self.scene.garment.is_some()) {
             // The weights alone, on the project's own parts: only when they are the garment
             // (with its skin weights) and the avatar the run was trained on.
             let refused = match &self.scene.garment {

@@ -1,21 +1,22 @@
-//! The authoring app's state, independent of any window: scene, fabric, effects, training
-//! settings and control, playback, the dynamic weight `w`, view toggles, messages, project and
-//! recent files. Every user action is a method here; the panels only call them.
+//! The authoring app's state, independent of any window: the scene (its description with
+//! fabric, effects and training rate, and the parts loaded from it), training settings and
+//! control, playback, the dynamic weight `w`, view toggles, messages, project and recent files.
+//! Every user action is a method here (loading files in [`super::scene_edit`]); the panels only
+//! call them.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use crate::physics::FabricParams;
 use crate::render::{DrawOptions, SceneFrame};
-use crate::scene::{Avatar, Effects, Garment, Motion, Scene, Split};
+use crate::scene::{Avatar, Garment, Motion, Scene, SceneConfig, Split};
 use crate::train::TrainConfig;
 
 use super::export::ExportSettings;
-use super::loading;
 use super::metrics::{Metric, XAxis};
 use super::playback::Playback;
 use super::preview::Preview;
-use super::project::{RecentFiles, SceneSources};
+use super::project::RecentFiles;
 use super::training::{TrainingControl, TrainingRequest};
 
 /// Severity of a message in the status area.
@@ -38,61 +39,50 @@ pub struct Message {
     pub text: String,
 }
 
-/// The loaded scene.
+/// The scene: its description and the parts loaded from it.
 #[derive(Clone, Debug)]
 pub struct SceneState {
-    /// Display name.
-    pub name: String,
+    /// The scene's one description: where avatar, garment and motions come from (motions with
+    /// their splits, file paths absolute), effects, fabric and training frame rate. The
+    /// project saves it, a run records it, the io scene loader builds the parts from it.
+    pub config: SceneConfig,
     /// The avatar; its `motions` are every motion of the scene (the timeline's list).
     pub avatar: Arc<Avatar>,
-    /// Split of each motion, parallel to `avatar.motions` (loaded motions train).
+    /// Split of each motion, parallel to `avatar.motions`.
     pub splits: Vec<Split>,
-    /// The garment, if any.
+    /// The garment; None when the description's garment did not load (or does not fit the
+    /// avatar).
     pub garment: Option<Arc<Garment>>,
-    /// Where avatar, garment and extra motions came from.
-    pub sources: SceneSources,
     /// Incremented on every change of avatar, garment or motions.
     pub revision: u64,
 }
 
-/// A scene to start from (the built-in default scene, or the parts a project does not name).
+/// A scene to show: its description and the parts loaded from it.
 #[derive(Clone, Debug)]
 pub struct SceneParts {
-    /// Display name.
-    pub name: String,
+    /// The description.
+    pub config: SceneConfig,
     /// The avatar; its `motions` are all the scene's motions.
     pub avatar: Arc<Avatar>,
     /// Split of each motion.
     pub splits: Vec<Split>,
     /// The garment.
     pub garment: Option<Arc<Garment>>,
-    /// Declared effects.
-    pub effects: Effects,
-    /// Fabric parameters.
-    pub fabric: FabricParams,
-    /// Training frame rate, fps.
-    pub training_fps: f32,
 }
 
 impl SceneParts {
-    /// Splits a [`Scene`] into the app's parts (its motions move into the avatar's list); the
-    /// fabric table is parsed by the physics layer.
-    pub fn from_scene(scene: Scene) -> Result<Self, String> {
+    /// The app's parts of a [`Scene`] loaded from `config`: the scene's motions become the
+    /// avatar's list (an avatar file's animations that the scene does not name are not shown).
+    pub fn from_scene(scene: Scene, config: SceneConfig) -> Self {
         let mut avatar = scene.avatar;
         let (motions, splits): (Vec<Motion>, Vec<Split>) = scene.motions.into_iter().unzip();
-        avatar.motions.extend(motions);
-        let mut all_splits = vec![Split::Train; avatar.motions.len() - splits.len()];
-        all_splits.extend(splits);
-        let fabric = FabricParams::from_table(&scene.fabric).map_err(|e| e.to_string())?;
-        Ok(Self {
-            name: scene.name,
+        avatar.motions = motions;
+        Self {
+            config,
             avatar: Arc::new(avatar),
-            splits: all_splits,
+            splits,
             garment: Some(Arc::new(scene.garment)),
-            effects: scene.effects,
-            fabric,
-            training_fps: scene.training_fps,
-        })
+        }
     }
 }
 
@@ -149,15 +139,9 @@ impl CurveSettings {
 
 /// Everything the app shows and edits.
 pub struct AppState {
-    /// The scene.
+    /// The scene (with its fabric, effects and training frame rate).
     pub scene: SceneState,
-    /// Fabric parameters.
-    pub fabric: FabricParams,
-    /// Preset the fabric started from.
-    pub fabric_preset: String,
-    /// Effects the scene declares.
-    pub effects: Effects,
-    /// Training configuration.
+    /// Training configuration; its `fps` follows the scene's training rate when a run starts.
     pub train_config: TrainConfig,
     /// Runs: the folder new runs go to, the run shown, recent runs, checkpoint retention.
     pub runs: super::runs::RunsState,
@@ -220,21 +204,17 @@ impl AppState {
     /// A state showing `parts` (the built-in default scene at start-up).
     pub fn new(parts: SceneParts, training: TrainingControl, recent: RecentFiles) -> Self {
         let train_config = TrainConfig {
-            fps: parts.training_fps,
+            fps: parts.config.training_fps,
             ..TrainConfig::default()
         };
         Self {
             scene: SceneState {
-                name: parts.name,
+                config: parts.config,
                 avatar: parts.avatar,
                 splits: parts.splits,
                 garment: parts.garment,
-                sources: SceneSources::default(),
                 revision: 1,
             },
-            fabric: parts.fabric,
-            fabric_preset: "default".into(),
-            effects: parts.effects,
             train_config,
             runs: super::runs::RunsState::new(recent.store.as_deref()),
             draw: DrawOptions::default(),
@@ -274,7 +254,7 @@ impl AppState {
             .map(|m| m.text.as_str())
     }
 
-    fn warn_all(&mut self, what: &str, warnings: Vec<String>) {
+    pub(crate) fn warn_all(&mut self, what: &str, warnings: Vec<String>) {
         for w in warnings {
             self.message(Level::Warning, format!("{what}: {w}"));
         }
@@ -287,115 +267,21 @@ impl AppState {
         self.playback.select_motion(self.playback.motion, count);
     }
 
-    /// Loads an avatar (glTF/GLB) and re-binds the current garment to it. On failure the
-    /// scene is unchanged and the error is shown; returns whether it worked.
-    pub fn load_avatar(&mut self, path: &Path) -> bool {
-        let loaded = match loading::load_avatar(path, self.train_config.fps) {
-            Ok(l) => l,
-            Err(e) => {
-                self.message(Level::Error, e);
-                return false;
-            }
-        };
-        let avatar = loaded.value;
-        // The old garment template was fitted to the old body: keep it only if it re-binds.
-        let garment = match (&self.scene.garment, &self.scene.sources.garment) {
-            (Some(_), Some(garment_path)) => match loading::load_garment(garment_path, &avatar) {
-                Ok(g) => Some(g.value),
-                Err(e) => {
-                    self.message(Level::Warning, format!("garment dropped: {e}"));
-                    None
-                }
-            },
-            _ => None,
-        };
-        self.message(
-            Level::Info,
-            format!(
-                "loaded avatar '{}' ({} motions)",
-                avatar.name,
-                avatar.motions.len()
-            ),
-        );
-        self.warn_all("avatar", loaded.warnings);
-        self.scene.splits = vec![Split::Train; avatar.motions.len()];
-        self.scene.name = avatar.name.clone();
-        self.scene.avatar = avatar;
-        if garment.is_none() {
-            self.scene.sources.garment = None;
-        }
-        self.scene.garment = garment;
-        self.scene.sources.avatar = Some(path.to_path_buf());
-        self.scene.sources.motions.clear();
-        self.scene_changed();
-        true
+    /// The scene's fabric.
+    pub fn fabric(&self) -> &FabricParams {
+        &self.scene.config.fabric
     }
 
-    /// Loads a garment (OBJ/glTF) onto the current avatar; errors are shown, not raised.
-    pub fn load_garment(&mut self, path: &Path) -> bool {
-        match loading::load_garment(path, &self.scene.avatar) {
-            Ok(loaded) => {
-                self.message(
-                    Level::Info,
-                    format!(
-                        "loaded garment '{}' ({} vertices)",
-                        loaded.value.name,
-                        loaded.value.vertex_count()
-                    ),
-                );
-                self.warn_all("garment", loaded.warnings);
-                self.scene.garment = Some(loaded.value);
-                self.scene.sources.garment = Some(path.to_path_buf());
-                self.scene_changed();
-                true
-            }
-            Err(e) => {
-                self.message(Level::Error, e);
-                false
-            }
-        }
-    }
-
-    /// Loads a BVH motion, retargets it onto the avatar and shows it.
-    pub fn load_motion(&mut self, path: &Path) -> bool {
-        match loading::load_motion(path, &self.scene.avatar, self.train_config.fps) {
-            Ok(loaded) => {
-                let mut avatar = (*self.scene.avatar).clone();
-                let motion: Motion = loaded.value;
-                self.message(
-                    Level::Info,
-                    format!(
-                        "loaded motion '{}' ({:.1} s)",
-                        motion.name,
-                        motion.duration_secs()
-                    ),
-                );
-                self.warn_all("motion", loaded.warnings);
-                avatar.motions.push(motion);
-                self.scene
-                    .splits
-                    .resize(avatar.motions.len() - 1, Split::Train);
-                self.scene.splits.push(Split::Train);
-                let index = avatar.motions.len() - 1;
-                self.scene.avatar = Arc::new(avatar);
-                self.scene.sources.motions.push(path.to_path_buf());
-                self.scene_changed();
-                self.playback.select_motion(index, index + 1);
-                true
-            }
-            Err(e) => {
-                self.message(Level::Error, e);
-                false
-            }
-        }
+    /// The preset the fabric is, or "custom".
+    pub fn fabric_preset(&self) -> &'static str {
+        self.fabric().preset_name().unwrap_or("custom")
     }
 
     /// Replaces the fabric by a named preset.
     pub fn apply_preset(&mut self, name: &str) {
         match FabricParams::preset(name) {
             Ok(f) => {
-                self.fabric = f;
-                self.fabric_preset = name.to_string();
+                self.scene.config.fabric = f;
                 self.fabric_changed();
             }
             Err(e) => self.message(Level::Error, e.to_string()),
@@ -404,8 +290,8 @@ impl AppState {
 
     /// Sends the fabric to a live run after an edit (invalid values are reported instead).
     pub fn fabric_changed(&mut self) {
-        match self.fabric.validate() {
-            Ok(()) => self.training.set_fabric(&self.fabric),
+        match self.scene.config.fabric.validate() {
+            Ok(()) => self.training.set_fabric(&self.scene.config.fabric),
             Err(e) => self.message(Level::Error, e.to_string()),
         }
     }
@@ -439,17 +325,22 @@ impl AppState {
             self.message(Level::Error, "load a garment before training");
             return;
         };
-        if let Err(e) = self.fabric.validate() {
-            self.message(Level::Error, e.to_string());
-            return;
-        }
-        if let Err(e) = self.train_config.validate() {
+        let config = TrainConfig {
+            fps: self.scene.config.training_fps,
+            ..self.train_config.clone()
+        };
+        if let Err(e) = config.validate() {
             self.message(Level::Error, e.to_string());
             return;
         }
         // The trainer makes a fresh `run-<time>` folder under the runs folder.
         let run_dir = self.runs_folder();
-        let scene = match self.assemble_scene(&garment) {
+        let scene = self.assemble_scene(&garment).and_then(|scene| {
+            // What the run records: it must describe a trainable scene.
+            self.scene.config.validate().map_err(|e| e.to_string())?;
+            Ok(scene)
+        });
+        let scene = match scene {
             Ok(s) => s,
             Err(e) => {
                 self.message(Level::Error, format!("cannot start training: {e}"));
@@ -458,10 +349,9 @@ impl AppState {
         };
         let request = TrainingRequest {
             scene: Arc::new(scene),
-            fabric: self.fabric.clone(),
-            config: self.train_config.clone(),
+            config,
             run_dir,
-            sources: self.scene.sources.clone(),
+            scene_config: self.scene.config.clone(),
         };
         match self.training.start(request, notify) {
             Ok(()) => self.message(Level::Info, "training started"),
@@ -469,8 +359,8 @@ impl AppState {
         }
     }
 
-    /// The scene as the trainer sees it: avatar, garment, motions with their splits, effects,
-    /// fabric and training frame rate.
+    /// The scene as the trainer sees it: avatar, garment, motions with their splits, and the
+    /// description's name, effects, fabric and training frame rate.
     pub fn assemble_scene(&self, garment: &Garment) -> Result<Scene, String> {
         let mut avatar = (*self.scene.avatar).clone();
         let motions: Vec<(Motion, Split)> = std::mem::take(&mut avatar.motions)
@@ -481,17 +371,10 @@ impl AppState {
         if !motions.iter().any(|(_, s)| *s == Split::Train) {
             return Err("no training motion: load a BVH motion".into());
         }
-        let fabric = toml::Table::try_from(&self.fabric).map_err(|e| e.to_string())?;
-        Scene::new(
-            self.scene.name.clone(),
-            avatar,
-            garment.clone(),
-            motions,
-            self.effects,
-            fabric,
-            self.train_config.fps,
-        )
-        .map_err(|e| e.to_string())
+        self.scene
+            .config
+            .assemble(avatar, garment.clone(), motions)
+            .map_err(|e| e.to_string())
     }
 
     /// Drains trainer events (once per frame) and hands new weights to the preview.

@@ -193,10 +193,8 @@ impl NeuralClothApp {
         }
     }
 
-    /// Opens a project (the built-in scene fills in the parts it does not name); see
-    /// [`super::state::AppState::open_project`].
+    /// Opens a project; see [`super::state::AppState::open_project`].
     pub fn open_project(&mut self, path: &std::path::Path) -> bool {
-        self.state
-            .open_project(path, || super::default_scene().ok())
+        self.state.open_project(path)
     }
 }

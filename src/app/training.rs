@@ -2,7 +2,7 @@
 //! [`TrainerHandle`]: the UI sends commands and drains events once per frame; training itself
 //! runs on the trainer's own thread, never on the UI thread.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use crate::model::ModelArtifact;
@@ -51,111 +51,16 @@ impl TrainingState {
 /// Everything a trainer needs to start a run from the app's current setup.
 #[derive(Clone, Debug)]
 pub struct TrainingRequest {
-    /// Avatar, garment, motions with splits, effects and training frame rate.
+    /// Avatar, garment, motions with splits, effects, fabric and training frame rate, as
+    /// loaded from `scene_config`.
     pub scene: Arc<Scene>,
-    /// Fabric parameters (the scene's fabric table holds the same values).
-    pub fabric: FabricParams,
-    /// Window, fps, batch and schedule.
+    /// Window, batch and schedule (its `fps` is the scene's training rate).
     pub config: TrainConfig,
     /// Where checkpoints go.
     pub run_dir: PathBuf,
-    /// The files the scene was loaded from (none: the built-in scene), so the run can
-    /// describe its scene for later evaluation and baking.
-    pub sources: super::project::SceneSources,
-}
-
-impl TrainingRequest {
-    /// The scene description the run records: the built-in scene with the loaded files in
-    /// place of its avatar and garment (absolute paths), the garment with the skin-weight
-    /// smoothing it was actually loaded with, and every motion trained on with its split (the
-    /// avatar's own motions, then the loaded files), so that `eval` and `bake` rebuild the garment and motions the
-    /// model was trained on.
-    pub fn scene_config(&self) -> SceneConfig {
-        use crate::scene::config::{AvatarSource, GarmentSource};
-        let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-        let mut config = SceneConfig::default_scene();
-        let sources = &self.sources;
-        config.effects = self.scene.effects;
-        config.training_fps = self.scene.training_fps;
-        if let Some(a) = &sources.avatar {
-            config.avatar = AvatarSource::File {
-                path: abs(a),
-                units: None,
-            };
-        }
-        if let Some(g) = &sources.garment {
-            config.garment = GarmentSource::File {
-                path: abs(g),
-                units: None,
-                smoothing_passes: Some(self.scene.garment.smoothing_passes),
-            };
-        }
-        config.motions = self.motion_sources(&abs);
-        config
-    }
-
-    /// The sources of the scene's motions, in the scene's order, each with the split it
-    /// trains with: the avatar's own motions (the built-in scene's procedural ones, or the
-    /// animations of a loaded avatar file), then the loaded motion files (the last
-    /// `sources.motions.len()` motions of the scene). A procedural motion is recorded by its
-    /// kind (its name), duration and rate at speed 1 (the app makes no other); one whose name
-    /// is no kind's cannot be recorded and is left out.
-    fn motion_sources(
-        &self,
-        abs: &dyn Fn(&Path) -> PathBuf,
-    ) -> Vec<crate::scene::config::MotionSource> {
-        use crate::scene::config::MotionSource;
-        use crate::scene::procedural::MotionKind;
-        let motions = &self.scene.motions;
-        let files = &self.sources.motions;
-        let own = motions.len().saturating_sub(files.len());
-        let (avatar_motions, file_motions) = motions.split_at(own);
-        let mut sources: Vec<MotionSource> = match &self.sources.avatar {
-            None => avatar_motions
-                .iter()
-                .filter_map(|(motion, split)| {
-                    let fps = self.scene.training_fps;
-                    Some(MotionSource::Builtin {
-                        builtin: MotionKind::from_name(&motion.name)?,
-                        duration_secs: motion.duration_secs(),
-                        speed: 1.0,
-                        fps: (motion.fps != fps).then_some(motion.fps),
-                        split: *split,
-                        name: None,
-                    })
-                })
-                .collect(),
-            Some(avatar) => {
-                let file = |name: Option<String>, split| MotionSource::File {
-                    path: abs(avatar),
-                    units: None,
-                    split,
-                    name,
-                    joint_map: None,
-                };
-                match avatar_motions.first() {
-                    // One split for all: the whole file (as it was loaded).
-                    Some((_, first)) if avatar_motions.iter().all(|(_, split)| split == first) => {
-                        vec![file(None, *first)]
-                    }
-                    _ => avatar_motions
-                        .iter()
-                        .map(|(motion, split)| file(Some(motion.name.clone()), *split))
-                        .collect(),
-                }
-            }
-        };
-        sources.extend(files.iter().zip(file_motions).map(|(path, (_, split))| {
-            MotionSource::File {
-                path: abs(path),
-                units: None,
-                split: *split,
-                name: None,
-                joint_map: None,
-            }
-        }));
-        sources
-    }
+    /// The app's scene description (file paths absolute), which the run records so that
+    /// `eval` and `bake` rebuild the scene it trained on.
+    pub scene_config: SceneConfig,
 }
 
 /// Starts a trainer thread for a request (the real one builds a training session from the
@@ -476,101 +381,5 @@ impl TrainingControl {
                 self.handle = None;
             }
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::scene::Split;
-    use crate::scene::config::{MotionSource, SceneConfig};
-    use crate::scene::procedural::build_builtin;
-
-    /// A coarse built-in scene with walk (train), turn (validation) and spin (test).
-    fn builtin_scene() -> Scene {
-        let config = SceneConfig::from_toml_str(
-            r#"
-name = "small"
-[avatar]
-builtin = "mannequin"
-[garment]
-builtin = "tshirt"
-resolution = 300
-[[motions]]
-builtin = "walk"
-duration_secs = 0.5
-[[motions]]
-builtin = "turn"
-duration_secs = 0.5
-split = "validation"
-[[motions]]
-builtin = "spin"
-duration_secs = 0.5
-split = "test"
-"#,
-        )
-        .unwrap();
-        build_builtin(&config).unwrap()
-    }
-
-    /// The motion name a built-in motion source gives (None for a file).
-    fn builtin_name(source: &MotionSource) -> Option<&str> {
-        match source {
-            MotionSource::Builtin { builtin, name, .. } => {
-                Some(name.as_deref().unwrap_or(builtin.name()))
-            }
-            MotionSource::File { .. } => None,
-        }
-    }
-
-    fn split_of(source: &MotionSource) -> Split {
-        match source {
-            MotionSource::Builtin { split, .. } | MotionSource::File { split, .. } => *split,
-        }
-    }
-
-    #[test]
-    fn the_recorded_scene_keeps_the_builtin_motions_and_every_split() {
-        // The built-in avatar's motions and a BVH loaded on top (the app's BVH is the last
-        // motion; here a renamed copy of the walk), put into the validation split.
-        let mut scene = builtin_scene();
-        let mut mocap = scene.motions[0].0.clone();
-        mocap.name = "mocap".into();
-        scene.motions.push((mocap, Split::Validation));
-        let request = TrainingRequest {
-            scene: Arc::new(scene),
-            fabric: FabricParams::default(),
-            config: TrainConfig::default(),
-            run_dir: PathBuf::from("runs"),
-            sources: crate::app::project::SceneSources {
-                motions: vec![PathBuf::from("/data/mocap.bvh")],
-                ..Default::default()
-            },
-        };
-        let motions = request.scene_config().motions;
-        let names: Vec<Option<&str>> = motions.iter().map(builtin_name).collect();
-        assert_eq!(
-            names,
-            [Some("walk"), Some("turn"), Some("spin"), None],
-            "{motions:?}"
-        );
-        let splits: Vec<Split> = motions.iter().map(split_of).collect();
-        assert_eq!(
-            splits,
-            [
-                Split::Train,
-                Split::Validation,
-                Split::Test,
-                Split::Validation
-            ]
-        );
-        assert!(
-            matches!(&motions[3], MotionSource::File { path, .. } if path.ends_with("mocap.bvh"))
-        );
-        // The built-in motions as trained (half a second), not the default scene's.
-        let MotionSource::Builtin { duration_secs, .. } = &motions[0] else {
-            panic!("{motions:?}");
-        };
-        assert!((duration_secs - 0.5).abs() < 1e-3, "{duration_secs}");
     }
 }

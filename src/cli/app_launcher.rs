@@ -17,16 +17,16 @@ impl TrainerLauncher for RealLauncher {
         notify: Arc<dyn Fn() + Send + Sync>,
     ) -> Result<TrainerHandle, String> {
         let scene = (*request.scene).clone();
-        // The run stores its scene description so it can be evaluated and baked later; a
+        // The run stores the app's scene description so it can be evaluated and baked later; a
         // scene that no longer matches it is refused at load time (garment fingerprint).
-        let scene_config = request.scene_config();
         let setup = TrainSetup {
             scene,
-            scene_config,
+            scene_config: request.scene_config,
             train: request.config,
             model: ClothNetConfig::default(),
             descriptors: DescriptorConfig::default(),
-            fabric: Some(request.fabric),
+            // The scene's own fabric.
+            fabric: None,
             location: RunLocation::NewUnder(request.run_dir),
         };
         Trainer::spawn(setup, Some(notify)).map_err(|e| e.to_string())

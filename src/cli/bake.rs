@@ -13,8 +13,8 @@ use neural_cloth::bake::{
 use neural_cloth::io::JointMap;
 use neural_cloth::io::Units;
 use neural_cloth::io::scene_loader::{MotionImport, load_motions};
+use neural_cloth::physics::GarmentRest;
 use neural_cloth::physics::simulator::{SimOptions, Stepper};
-use neural_cloth::physics::{FabricParams, GarmentRest};
 use neural_cloth::scene::{Motion, Scene};
 use neural_cloth::train::load_trained;
 
@@ -204,7 +204,7 @@ pub fn run(args: BakeArgs) -> anyhow::Result<()> {
 /// Runs `simulate`.
 pub fn simulate(args: SimulateArgs) -> anyhow::Result<()> {
     let (scene, _) = super::train::scene_from_args(args.scene.as_deref(), None, None, None, None)?;
-    let fabric = FabricParams::from_table(&scene.fabric)?;
+    let fabric = scene.fabric.clone();
     let fps = args.output.fps;
     let motion = find_motion(
         &scene,

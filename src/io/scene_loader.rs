@@ -1,15 +1,16 @@
-//! Loads a whole scene from a [`SceneConfig`]: built-in sources come from
-//! `scene::procedural`, file sources from the importers of this layer (glTF/GLB avatars, OBJ or
-//! glTF garments, BVH motions and glTF animations of other rigs retargeted onto the avatar,
-//! with an optional joint map per motion).
+//! The one scene loader: builds a [`Scene`] (or one part of it, [`SceneLoader`]) from a
+//! [`SceneConfig`], for the CLI, a run's recorded scene and the app alike. Built-in sources
+//! come from `scene::procedural`, file sources from the importers of this layer (glTF/GLB
+//! avatars, OBJ or glTF garments, BVH motions and glTF animations of other rigs retargeted onto
+//! the avatar, with an optional joint map per motion).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::scene::config::{
     AvatarSource, GarmentSource, LengthUnit, MotionSource, SceneConfig, Split,
 };
 use crate::scene::procedural::{builtin_garment, builtin_motion, mannequin};
-use crate::scene::{Avatar, Garment, GarmentOptions, Motion, Scene};
+use crate::scene::{Avatar, Garment, GarmentOptions, Motion, Scene, SceneError};
 
 use super::{
     ImportOptions, IoError, JointMap, RetargetOptions, SourceMotion, Units, load_avatar, load_bvh,
@@ -42,88 +43,146 @@ pub fn load_scene(
     config_dir: &Path,
     config_path: &Path,
 ) -> Result<LoadedScene, IoError> {
-    let bad_config = |what: String| IoError::Unsupported {
-        what,
-        path: config_path.to_path_buf(),
-    };
-    config
-        .validate()
-        .map_err(|e| bad_config(format!("scene file: {e}")))?;
-    let mut warnings = Vec::new();
-    let fps = config.training_fps;
-    let builtin_avatar = matches!(config.avatar, AvatarSource::Builtin { .. });
-    let avatar: Avatar = match &config.avatar {
-        AvatarSource::Builtin { .. } => mannequin().map_err(|e| IoError::Scene {
-            source: e,
-            path: config_path.to_path_buf(),
-        })?,
-        AvatarSource::File { path, units } => {
-            let file = SceneConfig::resolve_path(config_dir, path);
-            let loaded = load_avatar(
-                &file,
-                &ImportOptions {
-                    units: units_of(*units, &file)?,
-                    fps,
-                },
-            )?;
-            warnings.extend(
-                loaded
-                    .warnings
-                    .iter()
-                    .map(|w| format!("{}: {w}", file.display())),
-            );
-            loaded.avatar
+    SceneLoader::new(config, config_dir, config_path).scene()
+}
+
+/// Builds the parts of a scene from its description, one source at a time: the avatar, the
+/// garment on it, each motion source retargeted onto it. [`SceneLoader::scene`] loads them all
+/// (the CLI, a run's recorded scene); the app loads one part when the user loads one file, and
+/// keeps what loads when it opens a project.
+#[derive(Clone, Copy, Debug)]
+pub struct SceneLoader<'a> {
+    config: &'a SceneConfig,
+    dir: &'a Path,
+    config_path: &'a Path,
+}
+
+impl<'a> SceneLoader<'a> {
+    /// A loader of `config`, whose relative paths are resolved against `dir`; `config_path`
+    /// (the file the description came from) is named in errors about the description itself.
+    pub fn new(config: &'a SceneConfig, dir: &'a Path, config_path: &'a Path) -> Self {
+        Self {
+            config,
+            dir,
+            config_path,
         }
-    };
-    let garment: Garment = match &config.garment {
-        GarmentSource::Builtin {
-            builtin,
-            resolution,
-            smoothing_passes,
-        } => {
-            if !builtin_avatar {
-                return Err(bad_config(
-                    "built-in garments fit the built-in mannequin only; give a garment file".into(),
-                ));
+    }
+
+    /// The whole scene, after validating the description (fails at the first part that does
+    /// not load).
+    pub fn scene(&self) -> Result<LoadedScene, IoError> {
+        self.config
+            .validate()
+            .map_err(|e| self.bad_config(format!("scene file: {e}")))?;
+        let mut warnings = Vec::new();
+        let avatar = self.avatar(&mut warnings)?;
+        let garment = self.garment(&avatar, &mut warnings)?;
+        let mut motions: Vec<(Motion, Split)> = Vec::new();
+        for (k, source) in self.config.motions.iter().enumerate() {
+            for m in self.motions(k, &avatar, &mut warnings)? {
+                motions.push((m, source.split()));
             }
-            builtin_garment(&avatar, *builtin, *resolution, *smoothing_passes).map_err(|e| {
-                IoError::Scene {
-                    source: e,
-                    path: config_path.to_path_buf(),
+        }
+        let scene = self
+            .config
+            .assemble(avatar, garment, motions)
+            .map_err(|e| self.scene_error(e))?;
+        Ok(LoadedScene { scene, warnings })
+    }
+
+    /// The avatar: the built-in mannequin, or a skinned glTF/GLB file with its animations
+    /// resampled to the scene's training rate.
+    pub fn avatar(&self, warnings: &mut Vec<String>) -> Result<Avatar, IoError> {
+        match &self.config.avatar {
+            AvatarSource::Builtin { .. } => mannequin().map_err(|e| self.scene_error(e)),
+            AvatarSource::File { path, units } => {
+                let file = self.resolve(path);
+                match extension(&file).as_str() {
+                    "glb" | "gltf" => {}
+                    other => {
+                        return Err(IoError::UnsupportedFormat {
+                            extension: other.into(),
+                            path: file,
+                        });
+                    }
                 }
-            })?
+                let options = ImportOptions {
+                    units: units_of(*units),
+                    fps: self.config.training_fps,
+                };
+                let loaded = load_avatar(&file, &options)?;
+                warnings.extend(note_all(&file, &loaded.warnings));
+                Ok(loaded.avatar)
+            }
         }
-        GarmentSource::File {
-            path,
-            units,
-            smoothing_passes,
-        } => {
-            let file = SceneConfig::resolve_path(config_dir, path);
-            load_garment(
-                &file,
-                &avatar,
-                units_of(*units, &file)?,
-                smoothing_passes.unwrap_or(GarmentOptions::default().smoothing_passes),
-                &mut warnings,
-            )?
+    }
+
+    /// The garment bound to `avatar` (built from this description's avatar source): a
+    /// built-in garment (on the built-in mannequin only) or an OBJ/glTF file, its skin weights
+    /// smoothed as given or, by default, by [`GarmentOptions::for_name`] of its name (more
+    /// passes for skirts and dresses); the passes used are [`Garment::smoothing_passes`].
+    pub fn garment(&self, avatar: &Avatar, warnings: &mut Vec<String>) -> Result<Garment, IoError> {
+        match &self.config.garment {
+            GarmentSource::Builtin {
+                builtin,
+                resolution,
+                smoothing_passes,
+            } => {
+                if let AvatarSource::File { path, .. } = &self.config.avatar {
+                    return Err(IoError::Unsupported {
+                        what: format!(
+                            "the built-in garment '{}' fits the built-in mannequin only; give a \
+                             garment file",
+                            builtin.name()
+                        ),
+                        path: self.resolve(path),
+                    });
+                }
+                builtin_garment(avatar, *builtin, *resolution, *smoothing_passes)
+                    .map_err(|e| self.scene_error(e))
+            }
+            GarmentSource::File {
+                path,
+                units,
+                smoothing_passes,
+            } => {
+                let file = self.resolve(path);
+                load_garment(&file, avatar, units_of(*units), *smoothing_passes, warnings)
+            }
         }
-    };
-    let mut motions: Vec<(Motion, Split)> = Vec::new();
-    for source in &config.motions {
+    }
+
+    /// The motions of `config.motions[k]` on `avatar`: a built-in motion (the built-in
+    /// mannequin only), or every animation of a BVH or glTF file (or the one named) retargeted
+    /// onto the avatar (the avatar file's own animations are taken as they are).
+    pub fn motions(
+        &self,
+        k: usize,
+        avatar: &Avatar,
+        warnings: &mut Vec<String>,
+    ) -> Result<Vec<Motion>, IoError> {
+        let Some(source) = self.config.motions.get(k) else {
+            return Err(self.bad_config(format!("no motion source {k}")));
+        };
+        let fps = self.config.training_fps;
         match source {
             MotionSource::Builtin {
                 builtin,
                 duration_secs,
                 speed,
                 fps: motion_fps,
-                split,
                 name,
+                ..
             } => {
-                if !builtin_avatar {
-                    return Err(bad_config(
-                        "built-in motions drive the built-in mannequin only; give motion files"
-                            .into(),
-                    ));
+                if let AvatarSource::File { path, .. } = &self.config.avatar {
+                    return Err(IoError::Unsupported {
+                        what: format!(
+                            "the built-in motion '{}' drives the built-in mannequin only; give \
+                             motion files",
+                            builtin.name()
+                        ),
+                        path: self.resolve(path),
+                    });
                 }
                 let m = builtin_motion(
                     *builtin,
@@ -132,55 +191,66 @@ pub fn load_scene(
                     *speed,
                     name.as_deref(),
                 )
-                .map_err(|e| IoError::Scene {
-                    source: e,
-                    path: config_path.to_path_buf(),
-                })?;
-                motions.push((m, *split));
+                .map_err(|e| self.scene_error(e))?;
+                Ok(vec![m])
             }
             MotionSource::File {
                 path,
                 units,
-                split,
                 name,
                 joint_map,
+                ..
             } => {
-                let file = SceneConfig::resolve_path(config_dir, path);
+                let file = self.resolve(path);
                 let joint_map = joint_map
                     .as_ref()
-                    .map(|p| JointMap::load(&SceneConfig::resolve_path(config_dir, p)))
+                    .map(|p| JointMap::load(&self.resolve(p)))
                     .transpose()?;
-                for m in load_motions(
-                    &file,
-                    &avatar,
-                    &MotionImport {
-                        units: units_of(*units, &file)?,
-                        fps,
-                        only: name.as_deref(),
-                        joint_map: joint_map.as_ref(),
-                    },
-                    &mut warnings,
-                )? {
-                    motions.push((m, *split));
-                }
+                let how = MotionImport {
+                    units: units_of(*units),
+                    fps,
+                    only: name.as_deref(),
+                    joint_map: joint_map.as_ref(),
+                };
+                load_motions(&file, avatar, &how, warnings)
             }
         }
     }
-    let scene = config
-        .assemble(avatar, garment, motions)
-        .map_err(|e| IoError::Scene {
-            source: e,
-            path: config_path.to_path_buf(),
-        })?;
-    Ok(LoadedScene { scene, warnings })
+
+    fn resolve(&self, path: &Path) -> PathBuf {
+        SceneConfig::resolve_path(self.dir, path)
+    }
+
+    fn bad_config(&self, what: String) -> IoError {
+        IoError::Unsupported {
+            what,
+            path: self.config_path.to_path_buf(),
+        }
+    }
+
+    fn scene_error(&self, source: SceneError) -> IoError {
+        IoError::Scene {
+            source,
+            path: self.config_path.to_path_buf(),
+        }
+    }
 }
 
-/// Loads a garment template (OBJ, glTF or GLB by extension) and fits it to `avatar`.
+fn note_all(file: &Path, warnings: &[String]) -> Vec<String> {
+    warnings
+        .iter()
+        .map(|w| format!("{}: {w}", file.display()))
+        .collect()
+}
+
+/// Loads a garment template (OBJ, glTF or GLB by extension) and fits it to `avatar` with
+/// `smoothing_passes` of skin-weight smoothing (default: [`GarmentOptions::for_name`] of the
+/// garment's name).
 pub fn load_garment(
     file: &Path,
     avatar: &Avatar,
     units: Units,
-    smoothing_passes: usize,
+    smoothing_passes: Option<usize>,
     warnings: &mut Vec<String>,
 ) -> Result<Garment, IoError> {
     let options = ImportOptions {
@@ -203,10 +273,10 @@ pub fn load_garment(
             .iter()
             .map(|w| format!("{}: {w}", file.display())),
     );
-    let options = GarmentOptions {
-        smoothing_passes,
-        ..Default::default()
-    };
+    let mut options = GarmentOptions::for_name(&loaded.name);
+    if let Some(passes) = smoothing_passes {
+        options.smoothing_passes = passes;
+    }
     let garment =
         Garment::new(loaded.name, loaded.mesh, avatar, &options).map_err(|e| IoError::Scene {
             source: e,
@@ -311,20 +381,21 @@ pub fn load_motions(
     Ok(motions)
 }
 
-fn extension(file: &Path) -> String {
+/// Lower-case extension of `file` ("" when it has none).
+pub fn extension(file: &Path) -> String {
     file.extension()
         .map(|e| e.to_string_lossy().to_lowercase())
         .unwrap_or_default()
 }
 
-fn units_of(unit: Option<LengthUnit>, _file: &Path) -> Result<Units, IoError> {
-    Ok(match unit {
+fn units_of(unit: Option<LengthUnit>) -> Units {
+    match unit {
         None => Units::Auto,
         Some(LengthUnit::Metres) => Units::Metres,
         Some(LengthUnit::Centimetres) => Units::Centimetres,
         Some(LengthUnit::Millimetres) => Units::Millimetres,
         Some(LengthUnit::Inches) => Units::Inches,
-    })
+    }
 }
 
 /// The split of file `k` of `n` motion files taken from a folder (sorted by name), so that

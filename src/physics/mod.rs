@@ -72,17 +72,9 @@ pub enum PhysicsError {
         /// What is wrong.
         reason: String,
     },
-    /// An unknown preset name.
-    #[error("unknown fabric preset '{name}' (known: {known})")]
-    UnknownPreset {
-        /// Requested name.
-        name: String,
-        /// Known names.
-        known: String,
-    },
-    /// The fabric table could not be read.
-    #[error("fabric table: {0}")]
-    FabricTable(String),
+    /// The fabric parameters are invalid (an unknown preset, a value out of range).
+    #[error(transparent)]
+    Fabric(#[from] crate::scene::fabric::FabricError),
     /// The garment cannot be simulated.
     #[error("invalid garment: {0}")]
     InvalidGarment(String),

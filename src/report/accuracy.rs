@@ -394,7 +394,7 @@ pub fn run_cost_experiment(
     })?;
 
     // 2. Size the clip from the measured cost of one solver iteration.
-    let fabric = FabricParams::from_table(&scene.fabric)?;
+    let fabric = scene.fabric.clone();
     let rest = Arc::new(GarmentRest::from_garment(&scene.garment, &fabric)?);
     let device = device_for(BackendKind::Cpu, false);
     let first = motion.sample(0.0);

@@ -182,7 +182,7 @@ pub fn fidelity_scene(
             m(MotionKind::Turn, 3.2, Split::Validation),
         ],
         effects: Effects::default(),
-        fabric: crate::scene::config::default_fabric(),
+        fabric: FabricParams::default(),
         training_fps: 30.0,
     };
     Ok((build_builtin(&config)?, config))
@@ -213,7 +213,7 @@ fn reference_spin(
     let Some(first) = poses.first() else {
         return Ok(Vec::new());
     };
-    let fabric = FabricParams::from_table(&scene.fabric)?;
+    let fabric = scene.fabric.clone();
     let rest = Arc::new(GarmentRest::from_garment(&scene.garment, &fabric)?);
     let options = SimOptions {
         iterations_per_step: iterations,

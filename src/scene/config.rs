@@ -1,5 +1,7 @@
 //! Scene configuration: which avatar, garment and motions make a scene, which physical
-//! effects it needs, the fabric (opaque here) and the training frame rate.
+//! effects it needs, the fabric and the training frame rate. This one description is what a
+//! scene file holds, what the app's project file embeds (`[scene]`) and what a run folder
+//! records (`RUN/scene.toml`); `io::scene_loader` builds a [`Scene`] from it.
 //!
 //! Human-edited files are TOML. Every source is either built in (`builtin = "mannequin"`,
 //! `builtin = "tshirt"`, `builtin = "walk"`) or a file (`path = "..."`, relative to the config
@@ -9,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use super::fabric::FabricParams;
 use super::procedural::{GarmentKind, MotionKind};
 use super::{Avatar, Garment, Motion, Scene, SceneError};
 
@@ -117,9 +120,10 @@ pub struct SceneConfig {
     /// Physical effects; default: all but pinning.
     #[serde(default)]
     pub effects: Effects,
-    /// Fabric parameters, parsed by the physics layer; default `{ preset = "default" }`.
-    #[serde(default = "default_fabric")]
-    pub fabric: toml::Table,
+    /// Fabric parameters; in TOML a preset plus overrides of its fields
+    /// (`[fabric] preset = "denim"`, `bending_stiffness = 1e-4`); default: the "default" preset.
+    #[serde(default, with = "super::fabric::table")]
+    pub fabric: FabricParams,
     /// Frame rate motions are resampled to for training, frames per second, [1, 1000],
     /// default 30.
     #[serde(default = "default_training_fps")]
@@ -134,12 +138,6 @@ pub(crate) fn default_duration() -> f32 {
 }
 fn default_training_fps() -> f32 {
     30.0
-}
-/// The default fabric table, `{ preset = "default" }`.
-pub fn default_fabric() -> toml::Table {
-    let mut t = toml::Table::new();
-    t.insert("preset".into(), toml::Value::String("default".into()));
-    t
 }
 
 fn invalid(field: impl Into<String>, reason: impl Into<String>) -> ConfigError {
@@ -178,6 +176,44 @@ fn check_path(field: String, path: &Path) -> Result<(), ConfigError> {
     }
 }
 
+/// Checks the values of motion source `k` (speed, duration, rate, name, path).
+fn check_motion_values(k: usize, m: &MotionSource) -> Result<(), ConfigError> {
+    match m {
+        MotionSource::Builtin {
+            duration_secs,
+            speed,
+            fps,
+            name,
+            ..
+        } => {
+            let max = crate::scene::procedural::motions::MAX_SPEED;
+            if !(speed.is_finite() && *speed > 0.0 && *speed <= max) {
+                return Err(invalid(
+                    format!("motions[{k}].speed"),
+                    format!("{speed} is outside (0, {max}]"),
+                ));
+            }
+            if !(duration_secs.is_finite() && *duration_secs > 0.0 && *duration_secs <= 3600.0) {
+                return Err(invalid(
+                    format!("motions[{k}].duration_secs"),
+                    format!("{duration_secs} s is outside (0, 3600]"),
+                ));
+            }
+            if let Some(fps) = fps {
+                check_rate(format!("motions[{k}].fps"), *fps)?;
+            }
+            if name.as_deref().is_some_and(|n| n.trim().is_empty()) {
+                return Err(invalid(
+                    format!("motions[{k}].name"),
+                    "must not be empty when given",
+                ));
+            }
+            Ok(())
+        }
+        MotionSource::File { path, .. } => check_path(format!("motions[{k}].path"), path),
+    }
+}
+
 impl SceneConfig {
     /// The built-in default scene: mannequin, t-shirt (about 10K DoF) and all procedural
     /// motions, split per action (idle/walk/run/jump train, turn validation, spin test).
@@ -209,7 +245,7 @@ impl SceneConfig {
             },
             motions,
             effects: Effects::default(),
-            fabric: default_fabric(),
+            fabric: FabricParams::default(),
             training_fps: default_training_fps(),
         }
     }
@@ -252,34 +288,63 @@ impl SceneConfig {
 
     /// Checks ranges and consistency; the first problem found is returned.
     pub fn validate(&self) -> Result<(), ConfigError> {
+        self.validate_values()?;
+        let builtin_avatar = matches!(self.avatar, AvatarSource::Builtin { .. });
+        if let (GarmentSource::Builtin { builtin, .. }, false) = (&self.garment, builtin_avatar) {
+            return Err(invalid(
+                "garment.builtin",
+                format!(
+                    "built-in garment '{}' needs the built-in mannequin",
+                    builtin.name()
+                ),
+            ));
+        }
+        if self.motions.is_empty() {
+            return Err(invalid("motions", "at least one motion is needed"));
+        }
+        for (k, m) in self.motions.iter().enumerate() {
+            if let (MotionSource::Builtin { builtin, .. }, false) = (m, builtin_avatar) {
+                return Err(invalid(
+                    format!("motions[{k}].builtin"),
+                    format!(
+                        "built-in motion '{}' needs the built-in mannequin",
+                        builtin.name()
+                    ),
+                ));
+            }
+        }
+        if !self.motions.iter().any(|m| m.split() == Split::Train) {
+            return Err(invalid("motions", "no motion is in the \"train\" split"));
+        }
+        Ok(())
+    }
+
+    /// Checks every value against its range (name, rates, fabric, resolution, smoothing,
+    /// durations, speeds, paths) but not whether the parts make a trainable scene (built-in
+    /// garment and motions on the built-in mannequin, a motion to train on): what a scene being
+    /// edited in the app may hold between two loads.
+    pub fn validate_values(&self) -> Result<(), ConfigError> {
         if self.name.trim().is_empty() {
             return Err(invalid("name", "must not be empty"));
         }
         check_rate("training_fps".into(), self.training_fps)?;
-        let builtin_avatar = matches!(self.avatar, AvatarSource::Builtin { .. });
+        self.fabric
+            .validate()
+            .map_err(|e| invalid("fabric", e.to_string()))?;
         if let AvatarSource::File { path, .. } = &self.avatar {
             check_path("avatar.path".into(), path)?;
         }
         match &self.garment {
             GarmentSource::Builtin {
-                builtin,
                 resolution,
                 smoothing_passes,
+                ..
             } => {
                 use super::procedural::garments::{MAX_VERTICES, MIN_VERTICES};
                 if !(MIN_VERTICES..=MAX_VERTICES).contains(resolution) {
                     return Err(invalid(
                         "garment.resolution",
                         format!("{resolution} vertices is outside {MIN_VERTICES}..={MAX_VERTICES}"),
-                    ));
-                }
-                if !builtin_avatar {
-                    return Err(invalid(
-                        "garment.builtin",
-                        format!(
-                            "built-in garment '{}' needs the built-in mannequin",
-                            builtin.name()
-                        ),
                     ));
                 }
                 check_passes("garment.smoothing_passes".into(), *smoothing_passes)?;
@@ -293,61 +358,32 @@ impl SceneConfig {
                 check_passes("garment.smoothing_passes".into(), *smoothing_passes)?;
             }
         }
-        if self.motions.is_empty() {
-            return Err(invalid("motions", "at least one motion is needed"));
-        }
         for (k, m) in self.motions.iter().enumerate() {
-            match m {
-                MotionSource::Builtin {
-                    builtin,
-                    duration_secs,
-                    speed,
-                    fps,
-                    name,
-                    ..
-                } => {
-                    let max = crate::scene::procedural::motions::MAX_SPEED;
-                    if !(speed.is_finite() && *speed > 0.0 && *speed <= max) {
-                        return Err(invalid(
-                            format!("motions[{k}].speed"),
-                            format!("{speed} is outside (0, {max}]"),
-                        ));
-                    }
-                    if !(duration_secs.is_finite()
-                        && *duration_secs > 0.0
-                        && *duration_secs <= 3600.0)
-                    {
-                        return Err(invalid(
-                            format!("motions[{k}].duration_secs"),
-                            format!("{duration_secs} s is outside (0, 3600]"),
-                        ));
-                    }
-                    if let Some(fps) = fps {
-                        check_rate(format!("motions[{k}].fps"), *fps)?;
-                    }
-                    if !builtin_avatar {
-                        return Err(invalid(
-                            format!("motions[{k}].builtin"),
-                            format!(
-                                "built-in motion '{}' needs the built-in mannequin",
-                                builtin.name()
-                            ),
-                        ));
-                    }
-                    if name.as_deref().is_some_and(|n| n.trim().is_empty()) {
-                        return Err(invalid(
-                            format!("motions[{k}].name"),
-                            "must not be empty when given",
-                        ));
-                    }
-                }
-                MotionSource::File { path, .. } => check_path(format!("motions[{k}].path"), path)?,
-            }
-        }
-        if !self.motions.iter().any(|m| m.split() == Split::Train) {
-            return Err(invalid("motions", "no motion is in the \"train\" split"));
+            check_motion_values(k, m)?;
         }
         Ok(())
+    }
+
+    /// Applies `f` to every file path of the description (avatar, garment, motions and their
+    /// joint maps), e.g. to resolve them against a folder or store them relative to one.
+    pub fn map_paths(&mut self, f: impl Fn(&Path) -> PathBuf) {
+        if let AvatarSource::File { path, .. } = &mut self.avatar {
+            *path = f(path);
+        }
+        if let GarmentSource::File { path, .. } = &mut self.garment {
+            *path = f(path);
+        }
+        for m in &mut self.motions {
+            if let MotionSource::File {
+                path, joint_map, ..
+            } = m
+            {
+                *path = f(path);
+                if let Some(map) = joint_map {
+                    *map = f(map);
+                }
+            }
+        }
     }
 
     /// Assembles a scene from sources the caller has already loaded (one motion list entry
@@ -396,10 +432,7 @@ mod tests {
         assert_eq!(c.training_fps, 30.0);
         assert_eq!(c.effects, Effects::default());
         assert!(!c.effects.pinning);
-        assert_eq!(
-            c.fabric.get("preset").and_then(|v| v.as_str()),
-            Some("default")
-        );
+        assert_eq!(c.fabric, FabricParams::default());
         assert_eq!(
             c.garment,
             GarmentSource::Builtin {

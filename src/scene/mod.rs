@@ -1,6 +1,6 @@
 //! Scene layer: avatars (skeleton, rest mesh, skin weights), garments (template and
-//! transferred skin weights), motions (poses, resampling, mirroring), procedural defaults and
-//! the scene configuration.
+//! transferred skin weights), motions (poses, resampling, mirroring), procedural defaults,
+//! fabric parameters (plain data) and the scene configuration.
 
 pub mod avatar;
 pub mod garment;
@@ -58,12 +58,15 @@ pub enum SceneError {
 }
 
 pub mod config;
+pub mod fabric;
 pub mod procedural;
 
 pub use config::{Effects, SceneConfig, Split};
+pub use fabric::FabricParams;
 
-/// A complete scene: avatar, garment, motions with their data splits, the declared physical
-/// effects, the fabric table (parsed by the physics layer) and the training frame rate.
+/// A complete scene, built from a [`SceneConfig`] (by `io::scene_loader`): avatar, garment,
+/// motions with their data splits, the declared physical effects, the fabric and the training
+/// frame rate.
 #[derive(Clone, Debug)]
 pub struct Scene {
     /// Display name.
@@ -76,8 +79,8 @@ pub struct Scene {
     pub motions: Vec<(Motion, Split)>,
     /// Effects to build and evaluate.
     pub effects: Effects,
-    /// Fabric parameters (opaque here), e.g. `{ preset = "default" }`.
-    pub fabric: toml::Table,
+    /// Fabric parameters.
+    pub fabric: FabricParams,
     /// Frame rate motions are resampled to for training, frames per second (> 0).
     pub training_fps: f32,
 }
@@ -91,7 +94,7 @@ impl Scene {
         garment: Garment,
         motions: Vec<(Motion, Split)>,
         effects: Effects,
-        fabric: toml::Table,
+        fabric: FabricParams,
         training_fps: f32,
     ) -> Result<Self, SceneError> {
         if !(training_fps.is_finite() && training_fps > 0.0) {

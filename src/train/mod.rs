@@ -364,9 +364,11 @@ fn settings(
     let fabric = match (fabric, &resumed) {
         (Some(f), _) => f,
         (None, Some((_, meta))) => meta.fabric.clone(),
-        (None, None) => FabricParams::from_table(&scene.fabric)?,
+        (None, None) => scene.fabric.clone(),
     };
-    fabric.validate()?;
+    fabric
+        .validate()
+        .map_err(crate::physics::PhysicsError::from)?;
     if !scene.effects.dynamics {
         model.encoder = EncoderKind::StaticOnly;
     }

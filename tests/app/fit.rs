@@ -8,6 +8,8 @@ use neural_cloth::geometry::Vec3;
 use neural_cloth::io::export::obj_seq::obj_text;
 use neural_cloth::scene::procedural::{GarmentKind, builtin_garment, mannequin};
 
+use neural_cloth::app::panels::LoadKind;
+
 use super::{click, harness};
 
 #[test]
@@ -28,8 +30,8 @@ fn fit_garment_fits_a_garment_that_did_not_load_and_shows_it() {
     h.run();
     click(&mut h, "Fit garment");
     let start = Instant::now();
-    while h.state().state.scene.sources.garment.as_deref()
-        != Some(&dir.path().join("low_shirt-fitted.obj"))
+    while h.state().state.scene_file(LoadKind::Garment)
+        != Some(dir.path().join("low_shirt-fitted.obj"))
     {
         assert!(
             start.elapsed() < Duration::from_secs(120),

@@ -9,10 +9,11 @@ use std::time::Duration;
 use egui_kittest::Harness;
 use egui_kittest::kittest::{NodeT, Queryable};
 use neural_cloth::app::file_picker::{DialogMode, desktop_dialog_possible};
-use neural_cloth::app::project::{ProjectFile, SceneSources};
+use neural_cloth::app::project::ProjectFile;
 use neural_cloth::app::runs_panel::Confirm;
 use neural_cloth::app::{AppOptions, NeuralClothApp, TrainingState};
 use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
+use neural_cloth::scene::config::GarmentSource;
 use neural_cloth::scene::config::SceneConfig;
 use neural_cloth::scene::procedural::build_builtin;
 use neural_cloth::train::retention::Retention;
@@ -125,7 +126,7 @@ fn open_run_through_the_in_app_browser_shows_its_trained_model_and_the_project_r
     assert_eq!(s.training.run_dir.as_deref(), Some(run.as_path()));
     assert_eq!(s.training.progress.step, newest);
     assert!(!s.training.history.train.is_empty(), "the run's curves");
-    assert_eq!(s.scene.name, "tiny", "the run's own scene");
+    assert_eq!(s.scene.config.name, "tiny", "the run's own scene");
     assert_eq!(s.preview.describe(), format!("model at step {newest}"));
     assert_eq!(s.runs.recent.paths.first(), Some(&run));
     assert!(matches!(s.training.state(), TrainingState::Finished(Ok(_))));
@@ -220,11 +221,14 @@ fn a_project_shows_a_runs_weights_only_on_the_garment_skin_it_was_trained_on() {
     );
     std::fs::write(&garment, text).unwrap();
     let project = dir.path().join("p.toml");
+    let mut project_scene = SceneConfig::default_scene();
+    project_scene.garment = GarmentSource::File {
+        path: garment.clone(),
+        units: None,
+        smoothing_passes: None,
+    };
     ProjectFile {
-        scene: SceneSources {
-            garment: Some(garment.clone()),
-            ..Default::default()
-        },
+        scene: project_scene,
         run: Some(run.clone()),
         ..Default::default()
     }

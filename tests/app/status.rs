@@ -91,7 +91,7 @@ fn a_broken_project_file_is_refused_and_the_settings_stay() {
     h.run();
     let before = {
         let s = &h.state().state;
-        (s.fabric.clone(), s.w, s.playback.speed)
+        (s.fabric().clone(), s.w, s.playback.speed)
     };
     assert!(!h.state_mut().open_project(&broken));
     let s = &h.state().state;
@@ -100,6 +100,6 @@ fn a_broken_project_file_is_refused_and_the_settings_stay() {
         error.contains("playback_speed") && error.ends_with(&broken.display().to_string()),
         "{error}"
     );
-    assert_eq!((s.fabric.clone(), s.w, s.playback.speed), before);
+    assert_eq!((s.fabric().clone(), s.w, s.playback.speed), before);
     assert!(s.playback.speed.is_finite());
 }

@@ -16,7 +16,7 @@ use neural_cloth::scene::procedural::{
 #[test]
 fn reference_simulator_drapes_the_default_tshirt_on_the_still_mannequin() {
     let scene = default_scene().unwrap();
-    let fabric = FabricParams::from_table(&scene.fabric).unwrap();
+    let fabric = scene.fabric.clone();
     let device = Device::flex();
     let pose = scene.avatar.skeleton.rest_pose();
     // 10 fps: large implicit steps damp the slow stretch oscillation of the soft default

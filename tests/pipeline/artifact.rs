@@ -5,9 +5,9 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use neural_cloth::app::TrainingRequest;
 use neural_cloth::app::export::{ExportFormat, ExportRequest, Exporter, ModelExporter};
-use neural_cloth::app::project::SceneSources;
+use neural_cloth::app::project::RecentFiles;
+use neural_cloth::app::{AppState, SceneParts, TrainingControl};
 use neural_cloth::bake::{BakeOptions, ModelSource, bake};
 use neural_cloth::geometry::Vec3;
 use neural_cloth::io::export::read_pc2;
@@ -135,7 +135,7 @@ fn bake_of_a_60_fps_model_steps_at_60_fps() {
 fn skirt_loaded_in_the_app_evaluates_from_the_cli_with_the_same_smoothing() {
     let dir = tempfile::tempdir().unwrap();
     // A skirt file: the app smooths the skin weights of garments named so more.
-    let (mut scene, _) = super::tiny();
+    let (mut scene, config) = super::tiny();
     let skirt = builtin_garment(&scene.avatar, GarmentKind::Skirt, 300, None).unwrap();
     let path = dir.path().join("skirt.obj");
     let text = neural_cloth::io::export::obj_seq::obj_text(
@@ -145,30 +145,25 @@ fn skirt_loaded_in_the_app_evaluates_from_the_cli_with_the_same_smoothing() {
         "a skirt",
     );
     std::fs::write(&path, text).unwrap();
-    let loaded = neural_cloth::app::loading::load_garment(&path, &scene.avatar).unwrap();
-    let garment = (*loaded.value).clone();
+    let mut app = AppState::new(
+        SceneParts::from_scene(scene.clone(), config),
+        TrainingControl::new(None),
+        RecentFiles::default(),
+    );
+    assert!(app.load_garment(&path), "{:?}", app.messages);
+    let garment = app.scene.garment.as_deref().unwrap().clone();
     assert_eq!(
         garment.smoothing_passes,
         GarmentOptions::LOOSE_SMOOTHING_PASSES
     );
 
-    // Train on it as the app does: the run records the request's scene description.
+    // Train on it as the app does: the run records the app's scene description.
     scene.garment = garment.clone();
-    let request = TrainingRequest {
-        scene: Arc::new(scene.clone()),
-        fabric: Default::default(),
-        config: few_steps(30.0),
-        run_dir: dir.path().to_path_buf(),
-        sources: SceneSources {
-            garment: Some(path.clone()),
-            ..Default::default()
-        },
-    };
     let run = dir.path().join("run");
     let setup = TrainSetup {
         scene,
-        scene_config: request.scene_config(),
-        train: request.config.clone(),
+        scene_config: app.scene.config.clone(),
+        train: few_steps(30.0),
         model: super::small_model(),
         descriptors: DescriptorConfig::default(),
         fabric: None,
@@ -193,7 +188,7 @@ fn skirt_loaded_in_the_app_evaluates_from_the_cli_with_the_same_smoothing() {
         smoothing_passes, ..
     } = &mut recorded.garment
     {
-        *smoothing_passes = None;
+        *smoothing_passes = Some(3);
     }
     std::fs::write(&toml_path, recorded.to_toml_string().unwrap()).unwrap();
     let refused = load_trained(&run)
