@@ -165,7 +165,7 @@ pub struct TrainSetup {
     pub model: ClothNetConfig,
     /// Descriptor settings.
     pub descriptors: DescriptorConfig,
-    /// Fabric; `None` reads the scene's fabric table.
+    /// Fabric; `None`: the scene's own ([`Scene::fabric`]).
     pub fabric: Option<FabricParams>,
     /// Run folder.
     pub location: RunLocation,

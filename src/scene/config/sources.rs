@@ -86,7 +86,8 @@ pub enum GarmentSource {
         path: PathBuf,
         /// Unit of the file's lengths; default: metres for glTF, guessed for OBJ.
         units: Option<LengthUnit>,
-        /// Skin-weight smoothing passes, 0..=200; default 3 (use 20-50 for skirts).
+        /// Skin-weight smoothing passes, 0..=200; default by the garment's name
+        /// (`GarmentOptions::for_name`: 30 when it says skirt, dress, gown or robe, else 3).
         smoothing_passes: Option<usize>,
     },
 }
