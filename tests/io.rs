@@ -4,7 +4,8 @@
 //! for bad input, and a mutation test (random byte flips, truncations and splices) asserting
 //! that no importer panics. The USD export is read back by Pixar's usd-core and checked with
 //! its validators (`io/usd_export.rs`). Retargeting across rig naming conventions, rest poses,
-//! glTF rigs and joint maps, on fixtures written by our own code (`io/rigs.rs`). Garment
+//! glTF rigs and joint maps, on fixtures written by our own code (`io/rigs.rs`); by skeleton
+//! structure where the joint names say nothing (`io/structure.rs`). Garment
 //! fitting on built-in and MakeHuman garments, and the `fit` command (`io/fit.rs`). Characters
 //! built partly of rigid meshes parented to bones (`io/rigid_parts.rs`).
 //!
@@ -28,6 +29,8 @@ mod raw_gltf;
 mod rigid_parts;
 #[path = "io/rigs.rs"]
 mod rigs;
+#[path = "io/structure.rs"]
+mod structure;
 #[path = "io/usd_export.rs"]
 mod usd_export;
 

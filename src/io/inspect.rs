@@ -5,8 +5,9 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::joint_map::{JointMap, map_joints};
+use super::joint_map::JointMap;
 use super::joint_names::classify;
+use super::retarget::{SourceMotion, joint_mapping};
 use super::{ImportOptions, IoError, LoadedMesh, MeshUsage, MeshUse, Units};
 use crate::geometry::TriMesh;
 
@@ -115,36 +116,40 @@ pub fn inspect_mapping(
     joint_map: Option<&JointMap>,
 ) -> Result<String, IoError> {
     let mut out = inspect(path)?;
-    let avatar_names = if avatar == Path::new("mannequin") && !avatar.exists() {
-        crate::scene::procedural::mannequin::skeleton()
-            .map_err(|source| IoError::Scene {
-                source,
-                path: avatar.to_path_buf(),
-            })?
-            .names
+    let scene_err = |source| IoError::Scene {
+        source,
+        path: avatar.to_path_buf(),
+    };
+    let skeleton = if avatar == Path::new("mannequin") && !avatar.exists() {
+        crate::scene::procedural::mannequin::skeleton().map_err(scene_err)?
     } else {
         super::load_avatar(avatar, &ImportOptions::default())?
             .avatar
             .skeleton
-            .names
     };
-    let motion_names: Vec<String> = match ext_of(path).as_str() {
-        "bvh" => super::load_bvh(path)?
-            .joints
-            .into_iter()
-            .map(|j| j.name)
-            .collect(),
+    let source = match ext_of(path).as_str() {
+        "bvh" => SourceMotion::from_bvh(&super::load_bvh(path)?),
         _ => {
-            super::load_avatar(path, &ImportOptions::default())?
-                .avatar
-                .skeleton
-                .names
+            let rig = super::load_avatar(path, &ImportOptions::default())?.avatar;
+            let rest = crate::scene::Motion::new(
+                "rest",
+                30.0,
+                vec![rig.skeleton.rest_pose()],
+                rig.skeleton.len(),
+            )
+            .map_err(|source| IoError::Scene {
+                source,
+                path: path.to_path_buf(),
+            })?;
+            let motion = rig.motions.first().unwrap_or(&rest);
+            SourceMotion::from_rig(&rig.skeleton, motion, path)
         }
     };
-    let mapping = map_joints(&avatar_names, &motion_names, joint_map, path)?;
+    let (avatar_names, motion_names) = (&skeleton.names, &source.names);
+    let mapping = joint_mapping(&source, &skeleton, joint_map)?;
     let _ = writeln!(out, "retargeting onto: {}", avatar.display());
-    out.push_str(&mapping.report(&avatar_names, &motion_names));
-    match mapping.check_essential(&avatar_names, &motion_names, path) {
+    out.push_str(&mapping.report(avatar_names, motion_names));
+    match mapping.check_essential(avatar_names, motion_names, path) {
         Ok(()) => {
             let _ = writeln!(out, "essential joints: all mapped");
         }

@@ -1,6 +1,7 @@
 //! Mapping an avatar's joints onto a motion's: a user joint map (TOML) first, then the rigs'
-//! canonical joints ([`classify`]), then equal names; a clear error, with the closest names of
-//! the motion, when an essential joint is left over.
+//! canonical joints ([`classify`]), then equal names, then, when essential joints are still
+//! left over, the skeletons' structure ([`label_by_structure`]); a clear error, with the
+//! closest names of the motion, when an essential joint is left over after all that.
 //!
 //! A joint map file:
 //! ```toml
@@ -15,6 +16,7 @@ use std::path::{Path, PathBuf};
 
 use super::gltf_avatar::short_list;
 use super::joint_names::{CORE_JOINTS, classify, closest_names};
+use super::joint_structure::{RigShape, label_by_structure};
 use super::{IoError, file_stem, read_bytes};
 
 /// A user's joint map: avatar joint names to motion joint names, read from TOML.
@@ -65,6 +67,8 @@ pub enum MatchKind {
     Rig,
     /// Same name (ignoring case, separators, namespaces and rig prefixes).
     Name,
+    /// Same place in both skeletons' structure (legs, spine, arms), names not recognised.
+    Structure,
 }
 
 /// For each avatar joint, the motion joint that drives it and how it was found.
@@ -80,6 +84,11 @@ pub struct JointMapping {
     pub avatar_convention: &'static str,
     /// Naming convention recognised in the motion's joint names.
     pub motion_convention: &'static str,
+    /// Per motion joint: its canonical (Mixamo) name, when recognised.
+    pub motion_canonical: Vec<Option<&'static str>>,
+    /// What mapping by structure did, when names left essential joints unmapped (see
+    /// [`JointMapping::fill_by_structure`]).
+    pub structure: Option<String>,
 }
 
 /// Finds `name` among `names`: exactly, else ignoring ASCII case.
@@ -179,10 +188,83 @@ pub fn map_joints(
         canonical: a_rig.canonical,
         avatar_convention: a_rig.convention,
         motion_convention: m_rig.convention,
+        motion_canonical: m_rig.canonical,
+        structure: None,
     })
 }
 
 impl JointMapping {
+    /// True when an essential joint (see [`CORE_JOINTS`]) is unmapped or not recognised in
+    /// the avatar's names at all.
+    pub fn needs_structure(&self) -> bool {
+        CORE_JOINTS.iter().any(|c| {
+            self.canonical
+                .iter()
+                .position(|x| *x == Some(*c))
+                .is_none_or(|a| self.source[a].is_none())
+        })
+    }
+
+    /// Maps by the skeletons' structure what the names left unmapped: avatar joints whose
+    /// names are not recognised take the canonical joint their place in the avatar's skeleton
+    /// gives, then each unmapped avatar joint takes the unused motion joint of that canonical
+    /// name (recognised by its name, else by its place in the motion's skeleton). Does nothing unless [`Self::needs_structure`]; records what
+    /// it did, or why a skeleton was not recognised, in [`Self::structure`].
+    pub fn fill_by_structure(&mut self, avatar: &RigShape<'_>, motion: &RigShape<'_>) {
+        if !self.needs_structure() {
+            return;
+        }
+        let labels = label_by_structure(avatar)
+            .map_err(|why| format!("the avatar's skeleton is not recognised ({why})"))
+            .and_then(|a| {
+                label_by_structure(motion)
+                    .map(|m| (a, m))
+                    .map_err(|why| format!("the motion's skeleton is not recognised ({why})"))
+            });
+        let (a_labels, m_labels) = match labels {
+            Ok(l) => l,
+            Err(why) => {
+                self.structure = Some(why);
+                return;
+            }
+        };
+        for (a, label) in a_labels.iter().enumerate() {
+            if self.canonical[a].is_none()
+                && let Some(c) = label
+                && !self.canonical.contains(&Some(*c))
+            {
+                self.canonical[a] = Some(*c);
+            }
+        }
+        let mut used = vec![false; m_labels.len()];
+        for m in self.source.iter().flatten() {
+            if let Some(u) = used.get_mut(*m) {
+                *u = true;
+            }
+        }
+        let mut count = 0;
+        for a in 0..self.source.len() {
+            let Some(c) = self.canonical[a] else { continue };
+            if self.source[a].is_some() {
+                continue;
+            }
+            let named = self.motion_canonical.iter().position(|l| *l == Some(c));
+            let placed = m_labels.iter().position(|l| *l == Some(c));
+            let Some(m) = named.filter(|&m| !used[m]).or(placed) else {
+                continue;
+            };
+            if !used[m] {
+                self.source[a] = Some(m);
+                self.how[a] = Some(MatchKind::Structure);
+                used[m] = true;
+                count += 1;
+            }
+        }
+        self.structure = Some(format!(
+            "{count} joints mapped by the skeletons' structure (names not recognised)"
+        ));
+    }
+
     /// Checks that every essential avatar joint (see [`CORE_JOINTS`]) is mapped, and that
     /// some joint is: else an [`IoError::UnmappedJoints`] naming the motion file, listing the
     /// joints and the closest unused names of the motion.
@@ -230,6 +312,11 @@ impl JointMapping {
         Err(IoError::UnmappedJoints {
             joints: missing.iter().map(|&a| avatar[a].clone()).collect(),
             closest,
+            note: self
+                .structure
+                .as_ref()
+                .map(|s| format!("; by structure: {s}"))
+                .unwrap_or_default(),
             path: motion_file.to_path_buf(),
         })
     }
@@ -263,9 +350,13 @@ impl JointMapping {
                     MatchKind::UserMap => "joint map",
                     MatchKind::Rig => "rig names",
                     MatchKind::Name => "same name",
+                    MatchKind::Structure => "structure",
                 };
                 let _ = writeln!(out, "  {name} <- {} ({how})", motion[m]);
             }
+        }
+        if let Some(note) = &self.structure {
+            let _ = writeln!(out, "structure: {note}");
         }
         let unmapped = self.unmapped(avatar);
         let _ = writeln!(

@@ -20,6 +20,7 @@ pub mod gltf_mesh;
 pub mod inspect;
 pub mod joint_map;
 pub mod joint_names;
+pub mod joint_structure;
 mod joint_tables;
 pub mod obj;
 pub mod retarget;
@@ -191,7 +192,7 @@ pub enum IoError {
     /// Retargeting could not map the avatar's essential joints to the motion's joints.
     #[error(
         "cannot map avatar joints {joints:?} to joints of the motion (closest motion joints: \
-         {closest}; give them in a joint map, --joint-map): {}",
+         {closest}{note}; give them in a joint map, --joint-map): {}",
         path.display()
     )]
     UnmappedJoints {
@@ -199,6 +200,8 @@ pub enum IoError {
         joints: Vec<String>,
         /// For each of them, the closest unused joint names of the motion.
         closest: String,
+        /// Why mapping by structure did not help (`"; by structure: ..."`), or empty.
+        note: String,
         /// The motion file.
         path: PathBuf,
     },

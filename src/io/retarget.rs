@@ -1,8 +1,8 @@
 //! Retargeting motions (BVH, or the animations of a glTF rig) onto an avatar skeleton.
 //!
-//! Joints are matched by [`map_joints`]: a user joint map first, then the canonical joints of
-//! both rigs' naming conventions (Mixamo, CMU, Rigify, Unreal, SMPL, Daz, ...), then equal
-//! names. Rotations are transferred in world space, as deltas from each rig's rest pose: a
+//! Joints are matched by [`joint_mapping`]: a user joint map first, then the canonical joints
+//! of both rigs' naming conventions (Mixamo, CMU, Rigify, Unreal, SMPL, Daz, ...), then equal
+//! names, then, when essential joints are left over, the skeletons' structure. Rotations are transferred in world space, as deltas from each rig's rest pose: a
 //! mapped avatar joint turns away from its rest orientation by the same world rotation as its
 //! motion joint turns away from the motion's rest. With `align_rest`, a limb joint's rest is
 //! first turned so that its bone points where the motion's bone points in the motion's rest
@@ -15,7 +15,8 @@ use std::path::PathBuf;
 
 use super::bvh::Bvh;
 use super::gltf_avatar::short_list;
-use super::joint_map::{JointMap, JointMapping, map_joints};
+use super::joint_map::{JointMap, JointMapping, MatchKind, map_joints};
+use super::joint_structure::RigShape;
 use super::{IoError, check_fps};
 use crate::geometry::{Mat4, Quat, Vec3};
 use crate::scene::skeleton::rotation_of;
@@ -162,15 +163,31 @@ pub fn retarget(
         });
     }
     let n = skeleton.len();
-    let mapping = map_joints(
-        &skeleton.names,
-        &source.names,
-        options.joint_map.as_ref(),
-        &source.path,
-    )?;
+    let mapping = joint_mapping(source, skeleton, options.joint_map.as_ref())?;
     mapping.check_essential(&skeleton.names, &source.names, &source.path)?;
     let map = &mapping.source;
     let mut warnings = Vec::new();
+    let by_structure: Vec<String> = (0..n)
+        .filter(|&a| mapping.how[a] == Some(MatchKind::Structure))
+        .filter_map(|a| {
+            Some(format!(
+                "{} <- {}",
+                skeleton.names[a],
+                source.names.get(map[a]?)?
+            ))
+        })
+        .collect();
+    if !by_structure.is_empty() {
+        warnings.push(format!(
+            "{} joints mapped by the skeletons' structure, their names not being recognised \
+             ({}); check them with inspect --avatar, or give a --joint-map",
+            by_structure.len(),
+            short_list(
+                &by_structure.iter().map(String::as_str).collect::<Vec<_>>(),
+                6
+            )
+        ));
+    }
     let unmapped = mapping.unmapped(&skeleton.names);
     if !unmapped.is_empty() {
         warnings.push(format!(
@@ -204,11 +221,12 @@ pub fn retarget(
     };
     let hips_a = hips_a.unwrap_or(0);
 
-    // Scale from hip heights above the lowest joint (leg lengths), both in rest.
+    // Scale from hip heights above the lowest end joint (leg lengths), both in rest.
     let src_rest_pos: Vec<Vec3> = source.rest.iter().map(|r| r.1).collect();
-    let min_y = |pts: &[Vec3]| pts.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
-    let height_b = src_rest_pos.get(hips_b).map(|p| p.y).unwrap_or(0.0) - min_y(&src_rest_pos);
-    let height_a = rest_pos[hips_a].y - min_y(&rest_pos);
+    let (ends_a, ends_b) = (end_joints(&skeleton.parents), end_joints(&source.parents));
+    let height_b =
+        src_rest_pos.get(hips_b).map(|p| p.y).unwrap_or(0.0) - lowest_end(&src_rest_pos, &ends_b);
+    let height_a = rest_pos[hips_a].y - lowest_end(&rest_pos, &ends_a);
     let scale = if height_a > 1e-6 && height_b > 1e-6 && (height_a / height_b).is_finite() {
         height_a / height_b
     } else {
@@ -255,6 +273,65 @@ pub fn retarget(
     let native = Motion::new(source.name.clone(), source.fps, frames, n).map_err(scene_err)?;
     let motion = native.resample(fps).map_err(scene_err)?;
     Ok((motion, warnings))
+}
+
+/// The joint mapping [`retarget`] uses from `source` onto `skeleton`: [`map_joints`] on the
+/// names with the user's `joint_map`, then, when essential joints are left unmapped,
+/// [`JointMapping::fill_by_structure`] on both rigs' rest poses (and the motion's frames).
+/// Errors (naming the map file) when the joint map names a joint that does not exist.
+pub fn joint_mapping(
+    source: &SourceMotion,
+    skeleton: &Skeleton,
+    joint_map: Option<&JointMap>,
+) -> Result<JointMapping, IoError> {
+    let mut mapping = map_joints(&skeleton.names, &source.names, joint_map, &source.path)?;
+    if mapping.needs_structure() {
+        let avatar_rest: Vec<Vec3> = skeleton
+            .world_from_joint(&skeleton.rest_pose())
+            .iter()
+            .map(translation_of)
+            .collect();
+        let motion_rest: Vec<Vec3> = source.rest.iter().map(|r| r.1).collect();
+        mapping.fill_by_structure(
+            &RigShape {
+                parents: &skeleton.parents,
+                rest: &avatar_rest,
+                frames: &[],
+            },
+            &RigShape {
+                parents: &source.parents,
+                rest: &motion_rest,
+                frames: &source.frames,
+            },
+        );
+    }
+    Ok(mapping)
+}
+
+/// Per joint, whether it has no children (feet, hands, head, ... ends).
+fn end_joints(parents: &[Option<usize>]) -> Vec<bool> {
+    let mut end = vec![true; parents.len()];
+    for p in parents.iter().flatten() {
+        if let Some(e) = end.get_mut(*p) {
+            *e = false;
+        }
+    }
+    end
+}
+
+/// The lowest height of the end joints among `points` (of every point when no end joint
+/// is marked).
+fn lowest_end(points: &[Vec3], ends: &[bool]) -> f32 {
+    let lowest = |all: bool| {
+        points
+            .iter()
+            .zip(ends.iter().chain(std::iter::repeat(&false)))
+            .filter(|(_, e)| all || **e)
+            .map(|(p, _)| p.y)
+            .fold(f32::INFINITY, f32::min)
+    };
+    let y = lowest(false);
+    if y.is_finite() { y } else { lowest(true) }
 }
 
 /// The avatar joint whose motion joint carries the root translation: the mapped canonical
@@ -330,13 +407,15 @@ impl RootPlacement {
         rest_pos: &[Vec3],
         options: &RetargetOptions,
     ) -> Self {
-        // Ground = lowest joint over the whole motion.
+        // Ground = lowest end joint over the whole motion (a root joint at the floor under
+        // the hips is no foot).
+        let ends_b = end_joints(&source.parents);
         let ground_b = source
             .frames
             .iter()
-            .flat_map(|w| w.iter().map(|(_, p)| p.y))
+            .map(|w| lowest_end(&w.iter().map(|x| x.1).collect::<Vec<_>>(), &ends_b))
             .fold(f32::INFINITY, f32::min);
-        let ground_a = rest_pos.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+        let ground_a = lowest_end(rest_pos, &end_joints(&skeleton.parents));
         let start_b = source
             .frames
             .first()

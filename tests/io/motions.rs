@@ -1,7 +1,7 @@
 //! BVH motions: header facts read from the text, own-skeleton playback, retargeting every CMU
 //! clip onto a Mixamo-named skeleton, and typed errors for bad BVH input.
 
-use neural_cloth::geometry::Quat;
+use neural_cloth::geometry::{Quat, Vec3};
 use neural_cloth::io::{self, Bvh, IoError, RetargetOptions, Units};
 use neural_cloth::scene::skeleton::rotation_of;
 
@@ -198,33 +198,50 @@ fn bad_bvh_input_is_a_typed_error() {
         Bvh::parse(b"v 0 0 0\n", &path).unwrap_err(),
         IoError::Syntax { line: 1, .. }
     ));
-    // A skeleton none of whose joints can be matched is an error naming the motion file.
+    // A skeleton none of whose joints can be matched, by name or by structure (it lies flat),
+    // is an error naming the motion file.
     let bvh = io::load_bvh(&path).unwrap();
     let mut dog = mixamo_skeleton();
     dog.names = dog.names.iter().map(|n| format!("b_{n}_01")).collect();
+    for t in &mut dog.rest_local {
+        t.translation = Vec3::new(t.translation.x, 0.0, t.translation.y);
+    }
     let err = io::retarget_bvh(&bvh, &dog, &RetargetOptions::default()).unwrap_err();
     assert!(matches!(err, IoError::UnmappedJoints { .. }), "{err}");
+    assert!(
+        err.to_string()
+            .contains("the avatar's skeleton is not recognised (the rest pose has no height"),
+        "{err}"
+    );
     assert_names_file(&err, "cmu_02_01_walk.bvh");
 }
 
 #[test]
-fn missing_core_joints_in_the_motion_are_listed() {
-    // Remove the left leg chain's names from a CMU clip: the avatar's left leg cannot map.
+fn renamed_core_joints_of_a_cmu_clip_are_found_by_structure() {
+    // The left leg chain's names of a CMU clip made unrecognisable: the skeleton's structure
+    // finds the same joints, and the clip retargets exactly as with its own names.
     let path = asset("motions/cmu_02_01_walk.bvh");
-    let text = std::fs::read_to_string(&path)
-        .unwrap()
+    let original = std::fs::read_to_string(&path).unwrap();
+    let text = original
         .replace("JOINT LeftUpLeg", "JOINT LThighX")
         .replace("JOINT LeftLeg", "JOINT LShinX");
+    let options = RetargetOptions::default();
+    let sk = mixamo_skeleton();
     let bvh = Bvh::parse(text.as_bytes(), &path).unwrap();
-    let err = io::retarget_bvh(&bvh, &mixamo_skeleton(), &RetargetOptions::default()).unwrap_err();
-    match &err {
-        IoError::UnmappedJoints { joints, .. } => assert_eq!(
-            joints,
-            &vec!["LeftUpLeg".to_string(), "LeftLeg".to_string()]
-        ),
-        other => panic!("{other}"),
-    }
+    let (renamed, warnings) = io::retarget_bvh(&bvh, &sk, &options).unwrap();
     assert!(
-        err.to_string().contains("LeftUpLeg") && err.to_string().ends_with("cmu_02_01_walk.bvh")
+        warnings.iter().any(|w| w.contains(
+            "2 joints mapped by the skeletons' structure, their names not being recognised \
+             (LeftUpLeg <- LThighX, LeftLeg <- LShinX)"
+        )),
+        "{warnings:?}"
     );
+    let bvh = Bvh::parse(original.as_bytes(), &path).unwrap();
+    let (named, _) = io::retarget_bvh(&bvh, &sk, &options).unwrap();
+    assert_eq!(renamed.frame_count(), named.frame_count());
+    for (a, b) in renamed.frames.iter().zip(&named.frames) {
+        for (p, q) in sk.joint_positions(a).iter().zip(sk.joint_positions(b)) {
+            assert!((p - q).norm() < 1e-5, "{p:?} vs {q:?}");
+        }
+    }
 }

@@ -158,7 +158,7 @@ fn renamed(rig: &Rig) -> Vec<String> {
     names
 }
 
-fn import(fps: f32, joint_map: Option<&JointMap>) -> MotionImport<'_> {
+pub(super) fn import(fps: f32, joint_map: Option<&JointMap>) -> MotionImport<'_> {
     MotionImport {
         units: Units::Auto,
         fps,
@@ -169,7 +169,7 @@ fn import(fps: f32, joint_map: Option<&JointMap>) -> MotionImport<'_> {
 
 /// Largest distance between the joints of `got` and `want` (on the same skeleton), both
 /// taken relative to their first frame's hips.
-fn max_joint_error(sk: &Skeleton, got: &Motion, want: &Motion) -> f32 {
+pub(super) fn max_joint_error(sk: &Skeleton, got: &Motion, want: &Motion) -> f32 {
     assert_eq!(got.frame_count(), want.frame_count());
     let origin = |m: &Motion| sk.joint_positions(&m.frames[0])[0];
     let (og, ow) = (origin(got), origin(want));
@@ -182,7 +182,13 @@ fn max_joint_error(sk: &Skeleton, got: &Motion, want: &Motion) -> f32 {
     worst
 }
 
-fn write_bvh(dir: &Path, file: &str, sk: &Skeleton, m: &Motion, names: &[String]) -> PathBuf {
+pub(super) fn write_bvh(
+    dir: &Path,
+    file: &str,
+    sk: &Skeleton,
+    m: &Motion,
+    names: &[String],
+) -> PathBuf {
     let path = dir.join(file);
     std::fs::write(&path, bvh_text(sk, m, names, 100.0, &path).unwrap()).unwrap();
     path
@@ -216,7 +222,7 @@ fn builtin_motions_in_every_rig_naming_retarget_onto_the_mannequin() {
 
 /// The mannequin with its arms straight out (a T-pose rest; identity rest rotations), and
 /// the rotation that turns each A-pose arm bone into its T-pose direction.
-fn t_pose(sk: &Skeleton) -> (Skeleton, Vec<Quat>) {
+pub(super) fn t_pose(sk: &Skeleton) -> (Skeleton, Vec<Quat>) {
     let mut t = sk.clone();
     let mut turn = vec![Quat::identity(); sk.len()];
     for (side, x) in [("Left", 1.0f32), ("Right", -1.0)] {
@@ -233,7 +239,7 @@ fn t_pose(sk: &Skeleton) -> (Skeleton, Vec<Quat>) {
 }
 
 /// `motion` of `sk` re-expressed on the T-pose rig so every joint lands where it did.
-fn on_t_pose(sk: &Skeleton, t: &Skeleton, turn: &[Quat], motion: &Motion) -> Motion {
+pub(super) fn on_t_pose(sk: &Skeleton, t: &Skeleton, turn: &[Quat], motion: &Motion) -> Motion {
     let frames = motion
         .frames
         .iter()
@@ -290,7 +296,7 @@ fn a_t_pose_clip_drives_the_a_pose_mannequin() {
 }
 
 /// The mannequin whose joints carry other names.
-fn renamed_avatar(names: Vec<String>) -> Avatar {
+pub(super) fn renamed_avatar(names: Vec<String>) -> Avatar {
     let mut avatar = mannequin().unwrap();
     avatar.skeleton.names = names;
     avatar
@@ -334,24 +340,23 @@ fn joint_maps_override_and_bad_maps_name_the_joint_and_file() {
     let sk = &avatar.skeleton;
     let source = neural_cloth::scene::procedural::motion(MotionKind::Walk, 30.0, 1.0).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    // Arms named so nothing can guess them.
+    // Arms named so no naming convention can guess them: the skeleton's structure maps
+    // them, with a warning that says so.
     let mut names = sk.names.clone();
     for (joint, name) in [("LeftArm", "bone_07"), ("RightArm", "bone_11")] {
         names[sk.index_of(joint).unwrap()] = name.into();
     }
     let path = write_bvh(dir.path(), "odd.bvh", sk, &source, &names);
-    let err = load_motions(&path, &avatar, &import(30.0, None), &mut Vec::new()).unwrap_err();
-    match &err {
-        IoError::UnmappedJoints {
-            joints, closest, ..
-        } => {
-            assert_eq!(joints, &vec!["LeftArm".to_string(), "RightArm".to_string()]);
-            assert!(closest.contains("LeftArm ~ "), "{closest}");
-        }
-        other => panic!("{other}"),
-    }
-    assert!(err.to_string().contains("--joint-map"), "{err}");
-    assert_names_file(&err, "odd.bvh");
+    let mut warnings = Vec::new();
+    let motions = load_motions(&path, &avatar, &import(30.0, None), &mut warnings).unwrap();
+    assert!(max_joint_error(sk, &motions[0], &source) < 2e-3);
+    assert!(
+        warnings.iter().any(|w| w.contains(
+            "2 joints mapped by the skeletons' structure, their names not being recognised \
+             (LeftArm <- bone_07, RightArm <- bone_11)"
+        ) && w.contains("--joint-map")),
+        "{warnings:?}"
+    );
 
     let map_path = dir.path().join("map.toml");
     std::fs::write(
@@ -360,9 +365,11 @@ fn joint_maps_override_and_bad_maps_name_the_joint_and_file() {
     )
     .unwrap();
     let map = JointMap::load(&map_path).unwrap();
-    let motions = load_motions(&path, &avatar, &import(30.0, Some(&map)), &mut Vec::new())
+    let mut warnings = Vec::new();
+    let motions = load_motions(&path, &avatar, &import(30.0, Some(&map)), &mut warnings)
         .unwrap_or_else(|e| panic!("{e}"));
     assert!(max_joint_error(sk, &motions[0], &source) < 2e-3);
+    assert!(warnings.is_empty(), "{warnings:?}");
 
     // A map naming a joint the motion does not have: the joint, the motion and the map file.
     std::fs::write(&map_path, "[joints]\nLeftArm = \"bone_7\"\n").unwrap();
@@ -387,15 +394,33 @@ fn a_bvh_without_usable_hips_is_a_clear_error() {
     let avatar = mannequin().unwrap();
     let sk = &avatar.skeleton;
     let source = neural_cloth::scene::procedural::motion(MotionKind::Idle, 30.0, 0.5).unwrap();
+    // A root named 'Bone' whose legs are folded up: neither names nor structure find hips.
     let mut names = sk.names.clone();
     names[0] = "Bone".into();
+    let mut folded = sk.clone();
+    for (j, name) in sk.names.iter().enumerate() {
+        if ["Leg", "Foot", "Toe"].iter().any(|s| name.contains(s)) {
+            let t = &mut folded.rest_local[j].translation;
+            *t = Vec3::new(t.x, -0.02, 0.0);
+        }
+    }
     let dir = tempfile::tempdir().unwrap();
-    let path = write_bvh(dir.path(), "nohips.bvh", sk, &source, &names);
+    let path = write_bvh(dir.path(), "nohips.bvh", &folded, &source, &names);
     let err = load_motions(&path, &avatar, &import(30.0, None), &mut Vec::new()).unwrap_err();
-    assert!(
-        matches!(&err, IoError::UnmappedJoints { joints, .. } if joints == &vec!["Hips".to_string()]),
-        "{err}"
-    );
+    match &err {
+        IoError::UnmappedJoints {
+            joints,
+            closest,
+            note,
+            ..
+        } => {
+            assert_eq!(joints, &vec!["Hips".to_string()]);
+            assert!(closest.starts_with("Hips ~ "), "{closest}");
+            assert!(note.contains("no two legs reach the ground"), "{note}");
+        }
+        other => panic!("{other}"),
+    }
+    assert!(err.to_string().contains("--joint-map"), "{err}");
     assert_names_file(&err, "nohips.bvh");
 }
 
