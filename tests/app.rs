@@ -36,7 +36,7 @@ use egui_kittest::{Harness, SnapshotOptions};
 use neural_cloth::app::metrics::MetricRecord;
 use neural_cloth::app::panels::LoadKind;
 use neural_cloth::app::{
-    AppOptions, NeuralClothApp, TrainerLauncher, TrainingRequest, TrainingState,
+    AppError, AppOptions, NeuralClothApp, TrainerLauncher, TrainingRequest, TrainingState,
 };
 use neural_cloth::model::ModelArtifact;
 use neural_cloth::physics::FabricParams;
@@ -462,7 +462,7 @@ impl TrainerLauncher for FakeLauncher {
         &mut self,
         request: TrainingRequest,
         notify: Arc<dyn Fn() + Send + Sync>,
-    ) -> Result<TrainerHandle, String> {
+    ) -> Result<TrainerHandle, AppError> {
         let config = LoopConfig {
             run_dir: request.run_dir.clone(),
             start_step: 0,
@@ -480,8 +480,12 @@ impl TrainerLauncher for FakeLauncher {
         if let Ok(mut r) = self.requests.lock() {
             r.push(request);
         }
-        TrainerHandle::spawn_session(FakeSession { steps: 0 }, config, Some(notify))
-            .map_err(|e| e.to_string())
+        TrainerHandle::spawn_session(FakeSession { steps: 0 }, config, Some(notify)).map_err(
+            |source| AppError::Thread {
+                name: "fake trainer".into(),
+                source,
+            },
+        )
     }
 }
 

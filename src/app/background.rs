@@ -5,6 +5,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
+use super::error::AppError;
+
 /// Reports progress `P` to the UI; returns false once the user cancelled.
 pub struct Reporter<P> {
     progress: Arc<Mutex<P>>,
@@ -27,7 +29,8 @@ impl<P> Reporter<P> {
 pub struct BackgroundJob<P, R> {
     progress: Arc<Mutex<P>>,
     cancel: Arc<AtomicBool>,
-    thread: JoinHandle<Result<R, String>>,
+    thread: JoinHandle<Result<R, AppError>>,
+    name: String,
 }
 
 impl<P: Clone + Send + 'static, R: Send + 'static> BackgroundJob<P, R> {
@@ -37,8 +40,8 @@ impl<P: Clone + Send + 'static, R: Send + 'static> BackgroundJob<P, R> {
         name: &str,
         initial: P,
         notify: Arc<dyn Fn() + Send + Sync>,
-        work: impl FnOnce(&Reporter<P>) -> Result<R, String> + Send + 'static,
-    ) -> Result<Self, String> {
+        work: impl FnOnce(&Reporter<P>) -> Result<R, AppError> + Send + 'static,
+    ) -> Result<Self, AppError> {
         let progress = Arc::new(Mutex::new(initial));
         let cancel = Arc::new(AtomicBool::new(false));
         let reporter = Reporter {
@@ -49,11 +52,15 @@ impl<P: Clone + Send + 'static, R: Send + 'static> BackgroundJob<P, R> {
         let thread = std::thread::Builder::new()
             .name(name.into())
             .spawn(move || work(&reporter))
-            .map_err(|e| e.to_string())?;
+            .map_err(|source| AppError::Thread {
+                name: name.into(),
+                source,
+            })?;
         Ok(Self {
             progress,
             cancel,
             thread,
+            name: name.into(),
         })
     }
 
@@ -68,10 +75,11 @@ impl<P: Clone + Send + 'static, R: Send + 'static> BackgroundJob<P, R> {
     }
 
     /// The job's result (blocks until the thread ends; call after [`Self::is_finished`]).
-    pub fn join(self) -> Result<R, String> {
+    pub fn join(self) -> Result<R, AppError> {
+        let name = self.name;
         self.thread
             .join()
-            .unwrap_or_else(|_| Err("the background thread panicked".into()))
+            .unwrap_or_else(|_| Err(AppError::Panicked { name }))
     }
 
     /// The latest progress.
@@ -83,7 +91,7 @@ impl<P: Clone + Send + 'static, R: Send + 'static> BackgroundJob<P, R> {
 /// Takes the result of `job` once it has finished (never blocks on a running one).
 pub fn poll_job<P: Clone + Send + 'static, R: Send + 'static>(
     job: &mut Option<BackgroundJob<P, R>>,
-) -> Option<Result<R, String>> {
+) -> Option<Result<R, AppError>> {
     if job.as_ref().is_some_and(BackgroundJob::is_finished) {
         job.take().map(BackgroundJob::join)
     } else {

@@ -11,6 +11,7 @@ use crate::report::accuracy::{CostOptions, CostResult, run_cost_experiment};
 use crate::scene::Scene;
 
 use super::background::{BackgroundJob, poll_job};
+use super::error::AppError;
 
 /// State of the Cost panel.
 pub struct CostPanel {
@@ -18,7 +19,7 @@ pub struct CostPanel {
     pub budget_secs: f64,
     job: Option<BackgroundJob<Progress, CostResult>>,
     /// The last result, or the error that ended the last run.
-    pub result: Option<Result<CostResult, String>>,
+    pub result: Option<Result<CostResult, AppError>>,
     /// "Check against simulation" of the current run.
     pub check: super::sim_check::SimCheck,
 }
@@ -46,9 +47,9 @@ impl CostPanel {
         &mut self,
         scene: Scene,
         notify: Arc<dyn Fn() + Send + Sync>,
-    ) -> Result<(), String> {
+    ) -> Result<(), AppError> {
         if self.job.is_some() {
-            return Err("an experiment is already running".into());
+            return Err(AppError::AlreadyRunning("an experiment"));
         }
         let options = CostOptions {
             budget_secs: self.budget_secs.clamp(30.0, 1800.0),
@@ -60,7 +61,7 @@ impl CostPanel {
             notify,
             move |reporter| {
                 let mut report = |now: &Progress| reporter.report(now.clone());
-                run_cost_experiment(&scene, &options, &mut report).map_err(|e| e.to_string())
+                Ok(run_cost_experiment(&scene, &options, &mut report)?)
             },
         )?);
         Ok(())
@@ -106,7 +107,7 @@ impl super::NeuralClothApp {
             } else if ui.button("Measure").clicked() {
                 let started = match self.state.scene.garment.clone() {
                     Some(garment) => self.state.assemble_scene(&garment).and_then(|scene| self.cost.start(scene, self.notify.clone())),
-                    None => Err("load a garment first".into()),
+                    None => Err(AppError::Missing("load a garment first")),
                 };
                 if let Err(e) = started {
                     self.cost.result = Some(Err(e));
@@ -115,7 +116,7 @@ impl super::NeuralClothApp {
             match &self.cost.result {
                 Some(Ok(r)) => cost_table_ui(ui, r),
                 Some(Err(e)) => {
-                    ui.colored_label(ui.visuals().error_fg_color, e);
+                    ui.colored_label(ui.visuals().error_fg_color, e.to_string());
                 }
                 None => {}
             }

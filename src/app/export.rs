@@ -11,6 +11,8 @@ use crate::bake::{
 use crate::model::{InferenceOptions, ModelArtifact};
 use crate::scene::{Avatar, Garment, Motion};
 
+use super::error::AppError;
+
 /// Output formats of a baked sequence.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum ExportFormat {
@@ -196,7 +198,7 @@ pub fn write_rest_obj(
     garment: &Garment,
     preset: Option<Preset>,
     path: &Path,
-) -> Result<PathBuf, String> {
+) -> Result<PathBuf, AppError> {
     let convention = BakeOptions {
         format: BakeFormat::Obj,
         preset,
@@ -214,7 +216,7 @@ pub fn write_rest_obj(
             preset.map_or("none", Preset::name)
         ),
     );
-    crate::io::export::atomic::write_atomic(path, text.as_bytes()).map_err(|e| e.to_string())?;
+    crate::io::export::atomic::write_atomic(path, text.as_bytes())?;
     Ok(path.to_path_buf())
 }
 
@@ -255,7 +257,7 @@ pub trait Exporter: Send + Sync {
         &self,
         request: ExportRequest,
         progress: &mut dyn FnMut(usize, usize) -> bool,
-    ) -> Result<String, String>;
+    ) -> Result<String, AppError>;
 }
 
 /// The exporter of the app: bakes with the model's own settings (its training rate and
@@ -269,24 +271,21 @@ impl Exporter for ModelExporter {
         &self,
         request: ExportRequest,
         progress: &mut dyn FnMut(usize, usize) -> bool,
-    ) -> Result<String, String> {
-        let model = request
-            .weights
-            .as_deref()
-            .ok_or("train a model first: there are no weights to bake with")?;
+    ) -> Result<String, AppError> {
+        let model = request.weights.as_deref().ok_or(AppError::Missing(
+            "train a model first: there are no weights to bake with",
+        ))?;
         let motion = request
             .avatar
             .motions
             .get(request.motion)
-            .ok_or("no such motion")?;
+            .ok_or(AppError::Missing("no such motion"))?;
         // The model runs at the rate it was trained at; the bake resamples to `request.fps`.
         let options = InferenceOptions {
             skin_body: false,
             ..Default::default()
         };
-        let engine = model
-            .engine(&request.avatar, &request.garment, options)
-            .map_err(|e| e.to_string())?;
+        let engine = model.engine(&request.avatar, &request.garment, options)?;
         let options = BakeOptions {
             format: request.format.bake_format(),
             out: request.path.clone(),
@@ -303,8 +302,7 @@ impl Exporter for ModelExporter {
             &mut ModelSource::new(engine),
             &options,
             progress,
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         let mut outputs = report.outputs.clone();
         if request.rest_obj && request.format.is_point_cache() {
             let path = rest_obj_path(&options.out);
@@ -352,13 +350,13 @@ impl ExportEstimate {
         fps: f32,
         garment: &Garment,
         avatar: &Avatar,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, AppError> {
         let format = settings.format;
         let options = BakeOptions {
             fps,
             ..Default::default()
         };
-        let (start, end) = frame_range(motion, &options).map_err(|e| e.to_string())?;
+        let (start, end) = frame_range(motion, &options)?;
         let frames = end - start;
         let f = format.bake_format();
         let garment_bytes =

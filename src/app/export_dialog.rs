@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use super::NeuralClothApp;
 use super::background::{BackgroundJob, poll_job};
+use super::error::AppError;
 use super::export::{ExportEstimate, ExportFormat, ExportRequest, ExportSettings, Exporter};
 use super::file_picker::PickPurpose;
 use super::state::Level;
@@ -25,9 +26,9 @@ impl ExportJob {
         exporter: Arc<dyn Exporter>,
         request: ExportRequest,
         notify: Arc<dyn Fn() + Send + Sync>,
-    ) -> Result<(), String> {
+    ) -> Result<(), AppError> {
         if self.job.is_some() {
-            return Err("an export is already running".into());
+            return Err(AppError::AlreadyRunning("an export"));
         }
         self.job = Some(BackgroundJob::spawn(
             "neural-cloth-export",
@@ -58,7 +59,7 @@ impl ExportJob {
     }
 
     /// The result of a finished export (never blocks on a running one).
-    pub fn poll(&mut self) -> Option<Result<String, String>> {
+    pub fn poll(&mut self) -> Option<Result<String, AppError>> {
         poll_job(&mut self.job)
     }
 }
@@ -73,7 +74,7 @@ impl NeuralClothApp {
                     .state
                     .message(Level::Error, format!("export failed: {e}")),
             }
-            self.state.export.last_result = Some(result);
+            self.state.export.last_result = Some(result.map_err(|e| e.to_string()));
         }
         if !self.state.export.open {
             return;
@@ -101,7 +102,7 @@ impl NeuralClothApp {
                     .inner;
                 match &estimate {
                     Ok(e) => ui.label(e.summary()),
-                    Err(e) => ui.colored_label(ui.visuals().error_fg_color, e),
+                    Err(e) => ui.colored_label(ui.visuals().error_fg_color, e.to_string()),
                 };
                 outputs_ui(ui, &settings.outputs());
                 ui.label(format!("w = {:.2} (from the timeline)", self.state.w));
@@ -176,19 +177,19 @@ impl NeuralClothApp {
     }
 
     /// Frames and size of the dialog's current choice.
-    fn export_estimate(&self) -> Result<ExportEstimate, String> {
+    fn export_estimate(&self) -> Result<ExportEstimate, AppError> {
         let settings = &self.state.export;
         let garment = self
             .state
             .scene
             .garment
             .as_ref()
-            .ok_or("load a garment first")?;
+            .ok_or(AppError::Missing("load a garment first"))?;
         let avatar = &self.state.scene.avatar;
         let motion = avatar
             .motions
             .get(settings.motion)
-            .ok_or("choose a motion")?;
+            .ok_or(AppError::Missing("choose a motion"))?;
         ExportEstimate::of(
             settings,
             motion,
@@ -202,8 +203,8 @@ impl NeuralClothApp {
     fn start_export(&mut self) {
         let settings = self.state.export.clone();
         let started = match (&self.state.scene.garment, self.exporter.clone()) {
-            (None, _) => Err("load a garment first".to_string()),
-            (_, None) => Err("export is not available in this build".to_string()),
+            (None, _) => Err(AppError::Missing("load a garment first")),
+            (_, None) => Err(AppError::Missing("export is not available in this build")),
             (Some(garment), Some(exporter)) => {
                 let request = ExportRequest {
                     avatar: self.state.scene.avatar.clone(),
@@ -232,7 +233,7 @@ impl NeuralClothApp {
             Err(e) => {
                 self.state
                     .message(Level::Error, format!("export failed: {e}"));
-                self.state.export.last_result = Some(Err(e));
+                self.state.export.last_result = Some(Err(e.to_string()));
             }
         }
     }
@@ -349,12 +350,12 @@ mod tests {
             &self,
             _request: ExportRequest,
             progress: &mut dyn FnMut(usize, usize) -> bool,
-        ) -> Result<String, String> {
+        ) -> Result<String, AppError> {
             self.calls.fetch_add(1, Ordering::Relaxed);
             for k in 1..=self.frames {
                 std::thread::sleep(Duration::from_millis(1));
                 if !progress(k, self.frames) {
-                    return Err("bake cancelled".into());
+                    return Err(crate::bake::BakeError::Cancelled.into());
                 }
             }
             Ok(format!("wrote {} frames", self.frames))
@@ -378,7 +379,7 @@ mod tests {
         }
     }
 
-    fn wait(job: &mut ExportJob) -> Result<String, String> {
+    fn wait(job: &mut ExportJob) -> Result<String, AppError> {
         let start = Instant::now();
         loop {
             if let Some(r) = job.poll() {
@@ -404,7 +405,7 @@ mod tests {
             job.start(exporter.clone(), request(), notify.clone())
                 .is_err()
         );
-        assert_eq!(wait(&mut job), Ok("wrote 20 frames".into()));
+        assert_eq!(wait(&mut job).unwrap(), "wrote 20 frames");
         assert!(!job.is_running());
 
         let long = Arc::new(SlowExporter {
@@ -420,7 +421,14 @@ mod tests {
         let (done, total) = job.progress().unwrap();
         assert!(done >= 1 && total == 100_000);
         job.cancel();
-        assert_eq!(wait(&mut job), Err("bake cancelled".into()));
+        let cancelled = wait(&mut job);
+        assert!(
+            matches!(
+                cancelled,
+                Err(AppError::Bake(crate::bake::BakeError::Cancelled))
+            ),
+            "{cancelled:?}"
+        );
         assert_eq!(exporter.calls.load(Ordering::Relaxed), 1);
     }
 }

@@ -12,6 +12,7 @@ use crate::fit::{FitOptions, fit_file, write_obj};
 use crate::scene::Avatar;
 
 use super::background::{BackgroundJob, poll_job};
+use super::error::AppError;
 use super::state::{AppState, Level};
 
 /// A finished fit: where the fitted garment was written and what was done, in words.
@@ -34,10 +35,10 @@ pub fn fitted_path(garment: &Path) -> PathBuf {
 
 /// Fits `garment` onto `avatar` with the default options and writes it beside the garment
 /// ([`fitted_path`]). Errors name the file.
-pub fn fit_to_file(avatar: &Avatar, garment: &Path) -> Result<FitOutcome, String> {
-    let fitted = fit_file(avatar, garment, &FitOptions::default()).map_err(|e| e.to_string())?;
+pub fn fit_to_file(avatar: &Avatar, garment: &Path) -> Result<FitOutcome, AppError> {
+    let fitted = fit_file(avatar, garment, &FitOptions::default())?;
     let out = fitted_path(garment);
-    write_obj(&fitted, &out).map_err(|e| e.to_string())?;
+    write_obj(&fitted, &out)?;
     Ok(FitOutcome {
         fitted: out,
         summary: fitted.report.summary(),
@@ -62,9 +63,9 @@ impl FitPanel {
         avatar: Arc<Avatar>,
         garment: PathBuf,
         notify: Arc<dyn Fn() + Send + Sync>,
-    ) -> Result<(), String> {
+    ) -> Result<(), AppError> {
         if self.job.is_some() {
-            return Err("a fit is already running".into());
+            return Err(AppError::AlreadyRunning("a fit"));
         }
         self.job = Some(BackgroundJob::spawn(
             "neural-cloth-fit",
@@ -76,7 +77,7 @@ impl FitPanel {
     }
 
     /// The finished fit's outcome, once (never blocks on a running one).
-    pub fn poll(&mut self) -> Option<Result<FitOutcome, String>> {
+    pub fn poll(&mut self) -> Option<Result<FitOutcome, AppError>> {
         poll_job(&mut self.job)
     }
 }
@@ -94,7 +95,7 @@ impl AppState {
 
     /// Shows the outcome of a fit: loads the fitted garment (the viewport then shows it on
     /// the avatar) and reports what was done, or shows the error. Returns whether it loaded.
-    pub fn apply_fit(&mut self, outcome: Result<FitOutcome, String>) -> bool {
+    pub fn apply_fit(&mut self, outcome: Result<FitOutcome, AppError>) -> bool {
         match outcome {
             Ok(outcome) => {
                 if !self.load_garment(&outcome.fitted) {
@@ -199,7 +200,10 @@ mod tests {
             .sum::<f32>()
             / shirt.vertex_count() as f32;
         assert!(mean < 0.01, "{mean} m");
-        assert!(!state.apply_fit(Err("cannot fit: x.obj".into())));
+        let failed = crate::io::IoError::NoMesh {
+            path: "x.obj".into(),
+        };
+        assert!(!state.apply_fit(Err(failed.into())));
         assert!(state.last_error().is_some_and(|e| e.ends_with("x.obj")));
     }
 }

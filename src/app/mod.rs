@@ -12,6 +12,7 @@
 pub mod background;
 pub mod cost_panel;
 pub mod curve_math;
+pub mod error;
 pub mod export;
 pub mod export_dialog;
 pub mod file_browser;
@@ -38,6 +39,7 @@ pub mod viewport;
 use std::path::PathBuf;
 use std::sync::Arc;
 
+pub use error::AppError;
 pub use state::{AppState, SceneParts};
 pub use training::{TrainerLauncher, TrainingControl, TrainingRequest, TrainingState};
 pub use viewport::Viewport;

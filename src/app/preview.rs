@@ -10,8 +10,11 @@ use crate::geometry::Vec3;
 use crate::model::network::{ClothNetConfig, EncoderKind};
 use crate::model::{
     DescriptorConfig, InferenceEngine, InferenceOptions, InferenceWeights, ModelArtifact,
+    ModelError,
 };
 use crate::scene::{Avatar, Garment, Motion};
+
+use super::error::AppError;
 
 /// Frames replayed before a jump so that the recurrent state reflects recent motion.
 pub const WARMUP_FRAMES: usize = 15;
@@ -40,7 +43,7 @@ struct Fed {
 }
 
 /// A build of the untrained engine running on a helper thread.
-type Building = std::sync::mpsc::Receiver<Result<InferenceEngine, String>>;
+type Building = std::sync::mpsc::Receiver<Result<InferenceEngine, ModelError>>;
 
 /// The preview model. Its untrained engine is built on a helper thread (about a second), so
 /// the UI shows the skinned template meanwhile and never waits.
@@ -174,16 +177,16 @@ impl Preview {
     pub fn poll_build(&mut self) {
         let Some(rx) = &self.building else { return };
         let result = match rx.try_recv() {
-            Ok(result) => result,
+            Ok(result) => result.map_err(AppError::from),
             Err(std::sync::mpsc::TryRecvError::Empty) => return,
-            Err(std::sync::mpsc::TryRecvError::Disconnected) => {
-                Err("the preview thread stopped".into())
-            }
+            Err(std::sync::mpsc::TryRecvError::Disconnected) => Err(AppError::Panicked {
+                name: "neural-cloth-preview".into(),
+            }),
         };
         self.finish_build(result);
     }
 
-    fn finish_build(&mut self, result: Result<InferenceEngine, String>) {
+    fn finish_build(&mut self, result: Result<InferenceEngine, AppError>) {
         self.building = None;
         self.generation += 1;
         match result {
@@ -192,7 +195,7 @@ impl Preview {
                 self.source = Some(WeightsSource::Untrained);
             }
             Err(e) => {
-                self.error = Some(e);
+                self.error = Some(e.to_string());
                 self.failed_for_scene = true;
             }
         }
@@ -205,7 +208,7 @@ impl Preview {
         };
         match rx.recv_timeout(timeout) {
             Ok(result) => {
-                self.finish_build(result);
+                self.finish_build(result.map_err(AppError::from));
                 true
             }
             Err(_) => {
@@ -312,11 +315,10 @@ pub fn untrained_engine(
     motions: &[Motion],
     fps: f32,
     dynamics: bool,
-) -> Result<InferenceEngine, String> {
+) -> Result<InferenceEngine, ModelError> {
     let descriptors = DescriptorConfig::default();
     let joints =
-        crate::model::DescriptorStream::new(&avatar.skeleton, &descriptors, 1.0 / fps.max(1.0))
-            .map_err(|e| e.to_string())?
+        crate::model::DescriptorStream::new(&avatar.skeleton, &descriptors, 1.0 / fps.max(1.0))?
             .joint_count();
     let config = ClothNetConfig {
         encoder: if dynamics {
@@ -328,14 +330,12 @@ pub fn untrained_engine(
     };
     // burn builds the layer shapes; the values are then redrawn from our own seeded generator
     // (burn's generator is global and shared with other threads, e.g. a trainer).
-    let net = config
-        .init(
-            joints,
-            garment.vertex_count(),
-            &burn::tensor::Device::flex(),
-        )
-        .map_err(|e| e.to_string())?;
-    let mut weights = InferenceWeights::from_module(&net).map_err(|e| e.to_string())?;
+    let net = config.init(
+        joints,
+        garment.vertex_count(),
+        &burn::tensor::Device::flex(),
+    )?;
+    let mut weights = InferenceWeights::from_module(&net)?;
     let mut rng = SplitMix::new(PREVIEW_SEED);
     redraw(&mut weights, config.init_std as f32, &mut rng);
     smooth_basis(&mut weights, &garment.mesh.positions, &mut rng);
@@ -344,21 +344,18 @@ pub fn untrained_engine(
         ..Default::default()
     };
     let mut engine = ModelArtifact::new(weights.clone(), descriptors, fps)
-        .into_engine(avatar, garment, options)
-        .map_err(|e| e.to_string())?;
+        .into_engine(avatar, garment, options)?;
     // Runs WARMUP_FRAMES + 1 frames from the middle of `motion`; returns the rest-space offsets
     // and the mean magnitude of the dynamic code of the last frame.
     let run = |engine: &mut InferenceEngine,
                motion: &Motion,
                w: f32|
-     -> Result<(Vec<f32>, f32), String> {
+     -> Result<(Vec<f32>, f32), ModelError> {
         engine.reset();
         let count = (motion.duration_secs() * fps).floor().max(0.0) as usize + 1;
         let start = (count / 2).saturating_sub(WARMUP_FRAMES / 2);
         for k in start..(start + WARMUP_FRAMES + 1).min(count.max(start + 1)) {
-            engine
-                .step(&motion.sample(k as f32 / fps), w)
-                .map_err(|e| e.to_string())?;
+            engine.step(&motion.sample(k as f32 / fps), w)?;
         }
         Ok((engine.offsets().to_vec(), mean_abs(engine.dynamic_code())))
     };
@@ -382,9 +379,7 @@ pub fn untrained_engine(
         if let Some(first) = rec.joint_layers.first_mut() {
             first.weight.iter_mut().for_each(|v| *v *= gain);
         }
-        engine
-            .set_weights(weights.clone())
-            .map_err(|e| e.to_string())?;
+        engine.set_weights(weights.clone())?;
     }
     // (3) Scale the basis to the target effect of w, keeping w = 0 close to the template.
     let norm_mean = |v: &[f32]| {
@@ -404,7 +399,7 @@ pub fn untrained_engine(
         }
         let scale = scale.clamp(1e-3, 1e6);
         weights.basis.weight.iter_mut().for_each(|v| *v *= scale);
-        engine.set_weights(weights).map_err(|e| e.to_string())?;
+        engine.set_weights(weights)?;
     }
     engine.reset();
     Ok(engine)

@@ -149,7 +149,7 @@ impl AppState {
         let notify = self.runs.notify.clone().unwrap_or_else(|| Arc::new(|| {}));
         let folder = path.clone();
         let job = BackgroundJob::spawn("neural-cloth-open-run", (), notify, move |_| {
-            load_trained(&folder).map_err(|e| e.to_string())
+            Ok(load_trained(&folder)?)
         });
         match job {
             Ok(job) => {

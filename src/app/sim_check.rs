@@ -9,6 +9,7 @@ use crate::train::compare::{CompareOptions, CompareProgress, CompareReport, comp
 use crate::train::load_trained;
 
 use super::background::{BackgroundJob, poll_job};
+use super::error::AppError;
 
 /// State of the "Check against simulation" action.
 pub struct SimCheck {
@@ -19,7 +20,7 @@ pub struct SimCheck {
     pub shown_motion_only: bool,
     job: Option<BackgroundJob<Option<CompareProgress>, CompareReport>>,
     /// The last result, or the error that ended the last check.
-    pub result: Option<Result<CompareReport, String>>,
+    pub result: Option<Result<CompareReport, AppError>>,
 }
 
 impl Default for SimCheck {
@@ -61,9 +62,9 @@ impl SimCheck {
         run_dir: PathBuf,
         motion: Option<String>,
         notify: Arc<dyn Fn() + Send + Sync>,
-    ) -> Result<(), String> {
+    ) -> Result<(), AppError> {
         if self.job.is_some() {
-            return Err("a check is already running".into());
+            return Err(AppError::AlreadyRunning("a check"));
         }
         let options = CompareOptions {
             iterations: self.iterations.clamp(1, 10_000),
@@ -74,10 +75,9 @@ impl SimCheck {
             None,
             notify,
             move |reporter| {
-                let trained = load_trained(&run_dir).map_err(|e| e.to_string())?;
+                let trained = load_trained(&run_dir)?;
                 let mut report = |now: CompareProgress| reporter.report(Some(now));
-                compare(&trained, motion.as_deref(), &options, &mut report)
-                    .map_err(|e| e.to_string())
+                Ok(compare(&trained, motion.as_deref(), &options, &mut report)?)
             },
         )?);
         Ok(())
@@ -157,7 +157,7 @@ impl super::NeuralClothApp {
         match &self.cost.check.result {
             Some(Ok(r)) => compare_table_ui(ui, r),
             Some(Err(e)) => {
-                ui.colored_label(ui.visuals().error_fg_color, e);
+                ui.colored_label(ui.visuals().error_fg_color, e.to_string());
             }
             None => {}
         }
@@ -289,7 +289,7 @@ mod tests {
             std::thread::sleep(std::time::Duration::from_millis(10));
         }
         let error = match &check.result {
-            Some(Err(e)) => e.clone(),
+            Some(Err(e)) => e.to_string(),
             _ => String::from("no error"),
         };
         assert!(error.contains("run.json"), "{error}");

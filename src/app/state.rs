@@ -12,6 +12,7 @@ use crate::render::{DrawOptions, SceneFrame};
 use crate::scene::{Avatar, Garment, Motion, Scene, SceneConfig, Split};
 use crate::train::TrainConfig;
 
+use super::error::AppError;
 use super::export::ExportSettings;
 use super::metrics::{Metric, XAxis};
 use super::playback::Playback;
@@ -337,7 +338,7 @@ impl AppState {
         let run_dir = self.runs_folder();
         let scene = self.assemble_scene(&garment).and_then(|scene| {
             // What the run records: it must describe a trainable scene.
-            self.scene.config.validate().map_err(|e| e.to_string())?;
+            self.scene.config.validate()?;
             Ok(scene)
         });
         let scene = match scene {
@@ -361,7 +362,7 @@ impl AppState {
 
     /// The scene as the trainer sees it: avatar, garment, motions with their splits, and the
     /// description's name, effects, fabric and training frame rate.
-    pub fn assemble_scene(&self, garment: &Garment) -> Result<Scene, String> {
+    pub fn assemble_scene(&self, garment: &Garment) -> Result<Scene, AppError> {
         let mut avatar = (*self.scene.avatar).clone();
         let motions: Vec<(Motion, Split)> = std::mem::take(&mut avatar.motions)
             .into_iter()
@@ -369,12 +370,12 @@ impl AppState {
             .map(|(k, m)| (m, self.scene.splits.get(k).copied().unwrap_or(Split::Train)))
             .collect();
         if !motions.iter().any(|(_, s)| *s == Split::Train) {
-            return Err("no training motion: load a BVH motion".into());
+            return Err(AppError::Missing("no training motion: load a BVH motion"));
         }
-        self.scene
+        Ok(self
+            .scene
             .config
-            .assemble(avatar, garment.clone(), motions)
-            .map_err(|e| e.to_string())
+            .assemble(avatar, garment.clone(), motions)?)
     }
 
     /// Drains trainer events (once per frame) and hands new weights to the preview.

@@ -12,6 +12,7 @@ use crate::scene::config::SceneConfig;
 use crate::train::TrainConfig;
 use crate::train::handle::{TrainCommand, TrainEvent, TrainerHandle};
 
+use super::error::AppError;
 use super::metrics::{MetricHistory, SettingMarker, applied_marker_name, push_marker};
 
 /// Where the training run is.
@@ -72,7 +73,7 @@ pub trait TrainerLauncher: Send {
         &mut self,
         request: TrainingRequest,
         notify: Arc<dyn Fn() + Send + Sync>,
-    ) -> Result<TrainerHandle, String>;
+    ) -> Result<TrainerHandle, AppError>;
 }
 
 /// Progress numbers shown under the buttons.
@@ -161,12 +162,12 @@ impl TrainingControl {
         &mut self,
         request: TrainingRequest,
         notify: Arc<dyn Fn() + Send + Sync>,
-    ) -> Result<(), String> {
+    ) -> Result<(), AppError> {
         if self.state.is_active() {
-            return Err("training is already running".into());
+            return Err(AppError::AlreadyRunning("training"));
         }
         let Some(launcher) = self.launcher.as_mut() else {
-            return Err("no trainer is available in this build".into());
+            return Err(AppError::Missing("no trainer is available in this build"));
         };
         let max_steps = request.config.max_steps;
         let run_dir = request.run_dir.clone();

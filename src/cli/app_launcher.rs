@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use neural_cloth::app::{TrainerLauncher, TrainingRequest};
+use neural_cloth::app::{AppError, TrainerLauncher, TrainingRequest};
 use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
 use neural_cloth::train::{RunLocation, TrainSetup, Trainer, TrainerHandle};
 
@@ -15,7 +15,7 @@ impl TrainerLauncher for RealLauncher {
         &mut self,
         request: TrainingRequest,
         notify: Arc<dyn Fn() + Send + Sync>,
-    ) -> Result<TrainerHandle, String> {
+    ) -> Result<TrainerHandle, AppError> {
         let scene = (*request.scene).clone();
         // The run stores the app's scene description so it can be evaluated and baked later; a
         // scene that no longer matches it is refused at load time (garment fingerprint).
@@ -29,6 +29,6 @@ impl TrainerLauncher for RealLauncher {
             fabric: None,
             location: RunLocation::NewUnder(request.run_dir),
         };
-        Trainer::spawn(setup, Some(notify)).map_err(|e| e.to_string())
+        Ok(Trainer::spawn(setup, Some(notify))?)
     }
 }

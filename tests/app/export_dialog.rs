@@ -5,9 +5,10 @@
 use std::sync::Mutex;
 
 use egui_kittest::kittest::Queryable;
-use neural_cloth::app::NeuralClothApp;
 use neural_cloth::app::export::{ExportFormat, ExportRequest, Exporter};
-use neural_cloth::bake::Preset;
+use neural_cloth::app::{AppError, NeuralClothApp};
+use neural_cloth::bake::{BakeError, Preset};
+use neural_cloth::io::export::ExportError;
 
 use super::{harness_with, options};
 
@@ -58,7 +59,7 @@ impl Exporter for Shared {
         &self,
         request: ExportRequest,
         progress: &mut dyn FnMut(usize, usize) -> bool,
-    ) -> Result<String, String> {
+    ) -> Result<String, AppError> {
         let path = request.path.display().to_string();
         if let Ok(mut r) = self.0.requests.lock() {
             r.push((request.format, request.preset, path.clone()));
@@ -68,11 +69,15 @@ impl Exporter for Shared {
         }
         for k in 1..=3 {
             if !progress(k, 3) {
-                return Err("bake cancelled".into());
+                return Err(BakeError::Cancelled.into());
             }
         }
         match path.contains("fail") {
-            true => Err(format!("output folder does not exist: {path}")),
+            true => Err(ExportError::Format {
+                reason: "output folder does not exist".into(),
+                path: request.path.clone(),
+            }
+            .into()),
             false => Ok(format!("wrote 3 frames to {path}")),
         }
     }
