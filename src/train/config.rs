@@ -92,6 +92,11 @@ pub struct TrainConfig {
     /// tensor code they are checked against (false: the reference path, about 3× slower per
     /// step on the default scene; kept for checks and benchmarks).
     pub fused_physics: bool,
+    /// Update the parameters with the fused Adam ([`super::adam::FusedAdam`]: one host pass
+    /// over each parameter and its moments, the same formula and numbers as burn's) when the
+    /// backend keeps them on the host (`cpu`); false, or `wgpu`: burn's Adam. Both save the
+    /// same checkpoint state. Default true.
+    pub fused_adam: bool,
     /// A validation pass with at least this percentage of dead units in one revivable layer
     /// (decoder, static hidden layers) triggers the stall remedy (revive the dead units); 1..=100, default 75.
     pub dead_limit_pct: f64,
@@ -126,6 +131,7 @@ impl Default for TrainConfig {
             lr_decay_fraction: 0.0,
             lr_final_factor: 0.1,
             fused_physics: true,
+            fused_adam: true,
             fit_check: true,
         }
     }

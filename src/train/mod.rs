@@ -10,6 +10,7 @@
 //!   scene a run recorded; [`retention`]: which checkpoints are kept, disk use.
 //! - [`handle`]: the thread loop, commands, events, divergence rollback.
 
+pub mod adam;
 pub mod checkpoint;
 pub mod compare;
 pub mod config;
@@ -98,6 +99,10 @@ pub enum TrainError {
     /// The network or optimiser state could not be turned into bytes.
     #[error(transparent)]
     Record(#[from] burn::store::RecordError),
+    /// The fused optimiser refused (a parameter it cannot update, or a saved state of another
+    /// network).
+    #[error(transparent)]
+    Optimiser(#[from] adam::AdamError),
     /// The motions hold no window to validate on.
     #[error("no validation frames")]
     NoValidationFrames,

@@ -11,8 +11,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use burn::module::Module;
-use burn::optim::ModuleOptimizer;
-use burn::optim::{AdamConfig, GradientsParams};
+use burn::optim::GradientsParams;
 use burn::tensor::{Bytes, Device, Int, Tensor, TensorData};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
@@ -25,6 +24,7 @@ use crate::physics::{BodyBatch, ClothMetrics, Contacts, FabricParams, LossTerms,
 use crate::scene::{Avatar, Garment};
 
 use super::TrainError;
+use super::adam::TrainOptimiser;
 use super::config::{InertiaMode, TrainConfig};
 use super::data::{Batch, Dataset};
 use super::handle::Session;
@@ -40,7 +40,7 @@ pub const STEP_METRIC_WINDOWS: usize = 4;
 pub struct NeuralSession {
     device: Device,
     model: ClothNet,
-    optim: ModuleOptimizer,
+    optim: TrainOptimiser,
     learning_rate: f64,
     /// Factor of the learning-rate schedule on `learning_rate` (checkpoints keep the latter).
     schedule_factor: f64,
@@ -91,7 +91,7 @@ pub struct SessionParts {
 impl NeuralSession {
     /// Assembles a session with a fresh Adam optimiser.
     pub fn new(parts: SessionParts) -> Self {
-        let optim = AdamConfig::new().init();
+        let optim = TrainOptimiser::for_config(&parts.config);
         let seed = parts.config.seed;
         Self {
             device: parts.device,
@@ -124,9 +124,9 @@ impl NeuralSession {
             .clone()
             .try_load_record(record)
             .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
-        self.optim = AdamConfig::new()
-            .init()
-            .from_bytes(Bytes::from_bytes_vec(optim_bytes))
+        self.optim = self
+            .optim
+            .load_bytes(Bytes::from_bytes_vec(optim_bytes))
             .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
         self.learning_rate = state.learning_rate;
         Ok(state)
@@ -371,11 +371,11 @@ impl Session for NeuralSession {
         let loss = total.clone().into_scalar::<f64>();
         let grads = total.backward();
         let grads = GradientsParams::from_grads(grads, &self.model);
-        self.model = self.optim.step(
+        self.optim.step(
             self.learning_rate * self.schedule_factor,
-            self.model.clone(),
+            &mut self.model,
             grads,
-        );
+        )?;
         // Per-step metrics on the first few windows only: they are a noisy monitor anyway, and
         // the full batch would cost a sizeable share of the step (validation uses every window).
         let n = b.min(STEP_METRIC_WINDOWS);
@@ -476,7 +476,7 @@ impl Session for NeuralSession {
 
     fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, TrainError> {
         let model_bytes = self.model.clone().into_record().into_bytes()?;
-        let optim_bytes = self.optim.into_bytes()?;
+        let optim_bytes = self.optim.to_bytes()?;
         let state = CheckpointState {
             step,
             learning_rate: self.learning_rate,

@@ -1,0 +1,188 @@
+//! The fused Adam against burn's: same parameters step by step, and either one's record
+//! resumes the other.
+
+use burn::module::{Module, Param};
+use burn::nn::{Linear, LinearConfig};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::tensor::{Device, Distribution, Tensor};
+
+use super::*;
+
+/// A small module: two linear layers (with and without bias).
+#[derive(Module, Debug)]
+struct Small {
+    a: Linear,
+    b: Linear,
+}
+
+fn device() -> Device {
+    Device::flex().autodiff()
+}
+
+fn small(device: &Device) -> Small {
+    Small {
+        a: LinearConfig::new(7, 33).init(device),
+        b: LinearConfig::new(33, 5).with_bias(false).init(device),
+    }
+}
+
+/// Gradients of a loss with large and small terms (so the moments differ a lot between
+/// parameters) at step `k`.
+fn grads(model: &Small, k: usize, device: &Device) -> GradientsParams {
+    let values: Vec<f32> = (0..63)
+        .map(|i| ((i * 7 + k * 13) as f32 * 0.37).sin() * (1.0 + k as f32))
+        .collect();
+    let x = Tensor::<1>::from_floats(values.as_slice(), device).reshape([9, 7]);
+    let y = model.b.forward(model.a.forward(x).tanh());
+    let loss = (y.clone() * y.clone()).sum() + y.sum().mul_scalar(1e-3);
+    GradientsParams::from_grads(loss.backward(), model)
+}
+
+fn values(model: &Small) -> Vec<f32> {
+    let mut out = Vec::new();
+    for t in [
+        model.a.weight.val().flatten::<1>(0, 1),
+        model.b.weight.val().flatten::<1>(0, 1),
+    ] {
+        out.extend(t.inner().try_into_vec_as::<f32>().unwrap());
+    }
+    out.extend(
+        model
+            .a
+            .bias
+            .as_ref()
+            .unwrap()
+            .val()
+            .inner()
+            .try_into_vec_as::<f32>()
+            .unwrap(),
+    );
+    out
+}
+
+fn assert_close(a: &[f32], b: &[f32], what: &str) {
+    assert_eq!(a.len(), b.len());
+    for (i, (x, y)) in a.iter().zip(b).enumerate() {
+        let tolerance = 1e-6 * x.abs().max(y.abs()).max(1e-6);
+        assert!(
+            (x - y).abs() <= tolerance,
+            "{what}: value {i}: {x} against {y}"
+        );
+    }
+}
+
+fn burn_step(optim: &mut ModuleOptimizer, model: Small, k: usize, d: &Device) -> Small {
+    let g = grads(&model, k, d);
+    optim.step(1e-2, model, g)
+}
+
+fn fused_step(optim: &mut TrainOptimiser, model: &mut Small, k: usize, d: &Device) {
+    let g = grads(model, k, d);
+    optim.step(1e-2, model, g).unwrap();
+}
+
+#[test]
+fn the_fused_adam_equals_burns_over_several_steps() {
+    let d = device();
+    let start = small(&d);
+    let mut burn_model = start.clone();
+    let mut fused_model = start.clone();
+    let mut burn_optim = AdamConfig::new().init();
+    let mut fused = TrainOptimiser::new(true);
+    for k in 0..6 {
+        burn_model = burn_step(&mut burn_optim, burn_model, k, &d);
+        fused_step(&mut fused, &mut fused_model, k, &d);
+        assert_close(
+            &values(&fused_model),
+            &values(&burn_model),
+            &format!("step {k}"),
+        );
+    }
+    assert_ne!(values(&fused_model), values(&start));
+    // The stepped parameters still train.
+    let g = grads(&fused_model, 9, &d);
+    assert!(g.len() >= 3);
+}
+
+#[test]
+fn either_record_resumes_the_other_optimiser() {
+    let d = device();
+    let mut model = small(&d);
+    let mut fused = TrainOptimiser::new(true);
+    for k in 0..3 {
+        fused_step(&mut fused, &mut model, k, &d);
+    }
+    // Fused state → burn's optimiser, and burn's state after a step → the fused one.
+    let bytes = fused.to_bytes().unwrap();
+    let mut burn_optim = match TrainOptimiser::new(false)
+        .load_bytes(bytes.clone())
+        .unwrap()
+    {
+        TrainOptimiser::Burn(o) => o,
+        TrainOptimiser::Fused(_) => unreachable!(),
+    };
+    let mut resumed = fused.load_bytes(bytes).unwrap();
+    let mut fused_model = model.clone();
+    fused_step(&mut resumed, &mut fused_model, 3, &d);
+    let burn_model = burn_step(&mut burn_optim, model.clone(), 3, &d);
+    assert_close(
+        &values(&fused_model),
+        &values(&burn_model),
+        "after resuming",
+    );
+
+    let burn_bytes = burn_optim.into_bytes().unwrap();
+    let mut from_burn = TrainOptimiser::new(true).load_bytes(burn_bytes).unwrap();
+    let burn_model = burn_step(&mut burn_optim, burn_model, 4, &d);
+    fused_step(&mut from_burn, &mut fused_model, 4, &d);
+    assert_close(
+        &values(&fused_model),
+        &values(&burn_model),
+        "burn's record, fused",
+    );
+}
+
+#[test]
+fn an_uninterrupted_run_equals_a_resumed_one() {
+    let d = device();
+    let mut straight = small(&d);
+    let mut optim = TrainOptimiser::new(true);
+    for k in 0..2 {
+        fused_step(&mut optim, &mut straight, k, &d);
+    }
+    let saved = optim.to_bytes().unwrap();
+    let mut resumed_model = straight.clone();
+    let mut resumed = TrainOptimiser::new(true).load_bytes(saved).unwrap();
+    for k in 2..4 {
+        fused_step(&mut optim, &mut straight, k, &d);
+        fused_step(&mut resumed, &mut resumed_model, k, &d);
+    }
+    assert_eq!(values(&straight), values(&resumed_model));
+}
+
+#[test]
+fn a_state_of_another_network_is_refused_by_name() {
+    let d = device();
+    let mut model = small(&d);
+    let mut optim = TrainOptimiser::new(true);
+    fused_step(&mut optim, &mut model, 0, &d);
+    let bytes = optim.to_bytes().unwrap();
+    // The first layer's weight under its id, with another size.
+    let mut wrong = small(&d);
+    wrong.a = LinearConfig::new(8, 33).init(&d);
+    let weight = Tensor::random([8, 33], Distribution::Default, &d).require_grad();
+    wrong.a.weight = Param::initialized(model.a.weight.id, weight);
+    let mut loaded = TrainOptimiser::new(true).load_bytes(bytes).unwrap();
+    let x = Tensor::<2>::ones([2, 8], &d);
+    let g = GradientsParams::from_grads(wrong.a.forward(x).sum().backward(), &wrong);
+    let e = loaded.step(1e-2, &mut wrong, g).unwrap_err().to_string();
+    assert!(e.contains("another network"), "{e}");
+}
+
+#[test]
+fn garbage_is_not_an_optimiser_state() {
+    let e = FusedAdam::from_bytes(Bytes::from_bytes_vec(b"not a burnpack".to_vec()))
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with("optimiser state"), "{e}");
+}
