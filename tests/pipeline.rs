@@ -728,6 +728,53 @@ fn pinning_and_every_other_effect_act_in_training() {
     }
 }
 
+/// Issue 11: the loss on several trailing frames of each window (`loss_frames`) trains the
+/// pinned skirt with every effect on, finite, and changes what a step optimises.
+#[test]
+fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
+    let losses = |loss_frames: usize| {
+        let dir = tempfile::tempdir().unwrap();
+        let (scene, scene_config) = tiny_skirt(|_| {});
+        let (mut session, _) = prepare(TrainSetup {
+            scene,
+            scene_config,
+            train: TrainConfig {
+                loss_frames,
+                ..quick_config()
+            },
+            model: small_model(),
+            descriptors: DescriptorConfig::default(),
+            fabric: None,
+            location: RunLocation::At(dir.path().to_path_buf()),
+        })
+        .unwrap();
+        let before = session.validate().unwrap();
+        let mut steps = Vec::new();
+        for _ in 0..3 {
+            let step = session.step().unwrap();
+            assert!(step.is_finite(), "{step:?}");
+            steps.push(step.loss);
+        }
+        let after = session.validate().unwrap();
+        assert!(after.is_finite(), "{after:?}");
+        (before.loss, steps)
+    };
+    let (before_one, one) = losses(1);
+    let (before_three, three) = losses(3);
+    // Validation reads the last frame only, so the untrained model scores the same.
+    assert_eq!(before_one, before_three);
+    assert_ne!(
+        one[0], three[0],
+        "three loss frames gave the first step's loss of one"
+    );
+    // A window too short for its loss frames is refused.
+    let too_many = TrainConfig {
+        loss_frames: 8,
+        ..quick_config()
+    };
+    assert!(too_many.validate().is_err());
+}
+
 /// Issue 11: the pinned waistband of a skirt must stay at its skinned place in training, as it
 /// does in the simulator: after training with a large initial basis, pinned vertices are
 /// closer to the skinned template with pinning on than with it off.

@@ -100,6 +100,13 @@ pub struct TrainArgs {
     /// Learning-rate factor reached at the end of a bounded run, in (0, 1] (default 0.1).
     #[arg(long)]
     pub lr_final_factor: Option<f64>,
+    /// Trailing frames of each window that get the per-frame loss (inertia and the static
+    /// terms), 1..=16 (default 1, the paper's: the last frame only)
+    #[arg(long)]
+    pub loss_frames: Option<usize>,
+    /// Steps over which the learning rate rises linearly to its value at the start (default 0)
+    #[arg(long)]
+    pub warmup_steps: Option<u64>,
     /// Only still windows train the static encoder (moving windows see its code detached;
     /// default: every window trains it; see docs/TRAINING.md).
     #[arg(long)]
@@ -387,6 +394,12 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(f) = args.lr_decay_fraction {
         train.lr_decay_fraction = f;
+    }
+    if let Some(k) = args.loss_frames {
+        train.loss_frames = k;
+    }
+    if let Some(n) = args.warmup_steps {
+        train.warmup_steps = n;
     }
     if let Some(f) = args.lr_final_factor {
         train.lr_final_factor = f;

@@ -104,6 +104,16 @@ pub struct TrainConfig {
     /// body, far outside it, or a size or place that fitting would change a lot; see
     /// [`super::preflight::fit_refusal`]); built-in garments are not checked. Default true.
     pub fit_check: bool,
+    /// Trailing frames of each window that get the per-frame loss (inertia from the network's
+    /// own two previous frames, plus the static terms): 1 = the paper's (the last frame only);
+    /// more gives the dynamics that build up over several frames more signal per step, at
+    /// about that many times the physics cost. 1..=16 and at most the window's frames
+    /// minus 2; default 1.
+    pub loss_frames: usize,
+    /// Steps over which the learning rate rises linearly to its value at the start of a run
+    /// (Adam's first steps move every weight by about the rate whatever its gradient, which
+    /// kills most decoder units of a fresh network within 50 steps); 0..=100000, default 0.
+    pub warmup_steps: u64,
 }
 
 impl Default for TrainConfig {
@@ -133,6 +143,8 @@ impl Default for TrainConfig {
             fused_physics: true,
             fused_adam: true,
             fit_check: true,
+            loss_frames: 1,
+            warmup_steps: 0,
         }
     }
 }
@@ -257,6 +269,18 @@ impl TrainConfig {
             self.lr_final_factor,
             "(0, 1]",
         )?;
+        check(
+            (1..=16).contains(&self.loss_frames) && self.loss_frames + 2 <= self.window_frames(),
+            "loss_frames",
+            self.loss_frames,
+            "1..=16 and at most the window's frames minus 2",
+        )?;
+        check(
+            self.warmup_steps <= 100_000,
+            "warmup_steps",
+            self.warmup_steps,
+            "0..=100000",
+        )?;
         if let Some(m) = self.max_minutes {
             check(m.is_finite() && m > 0.0, "max_minutes", m, "> 0")?;
         }
@@ -264,8 +288,18 @@ impl TrainConfig {
     }
 }
 
+/// The learning-rate factor of the warm-up before step `step + 1` (0-based `step`):
+/// `(step + 1) / warmup_steps` up to 1; always 1 without a warm-up.
+pub fn warmup_factor(step: u64, warmup_steps: u64) -> f64 {
+    if warmup_steps == 0 {
+        1.0
+    } else {
+        ((step + 1) as f64 / warmup_steps as f64).min(1.0)
+    }
+}
+
 /// The learning-rate factor at `progress` (0..=1 of a bounded run): 1 until the last
-/// `decay_fraction`, then a half cosine down to `final_factor` at the end.
+/// `decay_fraction` of the run, then a half cosine down to `final_factor`.
 pub fn lr_schedule_factor(progress: f64, decay_fraction: f64, final_factor: f64) -> f64 {
     if decay_fraction <= 0.0 || !progress.is_finite() {
         return 1.0;
@@ -280,6 +314,10 @@ mod tests {
 
     #[test]
     fn lr_schedule_is_flat_then_falls_to_the_final_factor() {
+        assert_eq!(warmup_factor(0, 0), 1.0);
+        assert_eq!(warmup_factor(0, 4), 0.25);
+        assert_eq!(warmup_factor(3, 4), 1.0);
+        assert_eq!(warmup_factor(99, 4), 1.0);
         assert_eq!(lr_schedule_factor(0.0, 0.3, 0.1), 1.0);
         assert_eq!(lr_schedule_factor(0.7, 0.3, 0.1), 1.0);
         assert!((lr_schedule_factor(0.85, 0.3, 0.1) - 0.55).abs() < 1e-12);

@@ -59,12 +59,35 @@ pub struct Batch {
     pub static_desc: Vec<f32>,
     /// Dynamic descriptors `[B, T, J, 12]`.
     pub dynamic_desc: Vec<f32>,
-    /// Per-vertex blended garment skinning matrices of the last 3 frames `[B, 3, V, 12]`
+    /// Predicted (decoded) frames at the end of each window `K`: the loss frames plus the two
+    /// frames before the first of them.
+    pub predicted: usize,
+    /// Per-vertex blended garment skinning matrices of the last `K` frames `[B, K, V, 12]`
     /// (3x4 row-major, `Σ_k w_k M_{j_k}`), computed on the CPU: skinning is then a cheap
     /// element-wise product on the device, with no gather in the forward or backward pass.
     pub blended: Vec<f32>,
     /// `(motion, last frame)` of each window.
     pub windows: Vec<(usize, usize)>,
+    /// The first `still` windows are still (their last pose held for the whole window).
+    pub still: usize,
+}
+
+impl Batch {
+    /// `(motion, frame)` of the predicted frames `first..K` of every window, frame by frame
+    /// (all windows' frame `first`, then all windows' frame `first + 1`, ...): a still window's
+    /// frames are all its last frame. Frames are not clamped to the motion (see
+    /// [`Dataset::body`]).
+    pub fn stacked_frames(&self, first: usize) -> Vec<(usize, usize)> {
+        (first..self.predicted)
+            .flat_map(|k| {
+                let back = self.predicted - 1 - k;
+                self.windows.iter().enumerate().map(move |(s, &(m, last))| {
+                    let back = if s < self.still { 0 } else { back };
+                    (m, last.saturating_sub(back))
+                })
+            })
+            .collect()
+    }
 }
 
 /// Per-channel RMS of the dynamic descriptors of the train-split `motions` at `fps` (the
@@ -184,9 +207,16 @@ impl Dataset {
     }
 
     /// Assembles the windows of `frames` frames ending at each `(motion, last)`, blending the
-    /// garment's skinning matrices per vertex with `skin` (in parallel).
-    pub fn batch(&self, windows: &[(usize, usize)], frames: usize, skin: &SkinWeights) -> Batch {
-        self.batch_with_still(windows, 0, frames, skin)
+    /// garment's skinning matrices of the last `predicted` frames per vertex with `skin` (in
+    /// parallel).
+    pub fn batch(
+        &self,
+        windows: &[(usize, usize)],
+        frames: usize,
+        predicted: usize,
+        skin: &SkinWeights,
+    ) -> Batch {
+        self.batch_with_still(windows, 0, frames, predicted, skin)
     }
 
     /// Appends the static and dynamic descriptors of `windows` (each `frames` long) to the two
@@ -208,7 +238,7 @@ impl Dataset {
 
     /// Like [`Self::batch`], but the first `still` windows are still windows: the pose of their
     /// last frame held for the whole window (zero dynamic descriptors, the same skinning for
-    /// the three predicted frames). They teach the static branch the quasi-static drape of
+    /// every predicted frame). They teach the static branch the quasi-static drape of
     /// every training pose, which moving windows alone never show (a spin holds one pose
     /// while turning: its static code would otherwise learn the mean flared shape).
     pub fn batch_with_still(
@@ -216,6 +246,7 @@ impl Dataset {
         windows: &[(usize, usize)],
         still: usize,
         frames: usize,
+        predicted: usize,
         skin: &SkinWeights,
     ) -> Batch {
         use rayon::prelude::*;
@@ -224,10 +255,12 @@ impl Dataset {
         let mut b = Batch {
             size: windows.len(),
             frames,
+            predicted,
             windows: windows.to_vec(),
+            still,
             ..Default::default()
         };
-        let mut blocks: Vec<&[f32]> = Vec::with_capacity(windows.len() * 3);
+        let mut blocks: Vec<&[f32]> = Vec::with_capacity(windows.len() * predicted);
         for (k, &(mi, last)) in windows.iter().enumerate() {
             let Some(m) = self.motions.get(mi) else {
                 continue;
@@ -240,7 +273,7 @@ impl Dataset {
                 m.descriptors
                     .append_window(last, frames, &mut b.static_desc, &mut b.dynamic_desc);
             }
-            for back in (0..3).rev() {
+            for back in (0..predicted).rev() {
                 let back = if is_still { 0 } else { back };
                 let f = last.saturating_sub(back).min(m.frames().saturating_sub(1));
                 let start = f * j_all * MAT;
@@ -304,5 +337,29 @@ pub fn blend_matrices(joints: &[f32], skin: &SkinWeights, out: &mut [f32]) {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stacked_frames_go_frame_by_frame_and_still_windows_hold_their_last_pose() {
+        let batch = Batch {
+            size: 3,
+            predicted: 4,
+            windows: vec![(0, 10), (1, 20), (2, 1)],
+            still: 1,
+            ..Default::default()
+        };
+        // Loss frames 2 and 3 of K = 4: one and zero frames back from each window's end.
+        assert_eq!(
+            batch.stacked_frames(2),
+            vec![(0, 10), (1, 19), (2, 0), (0, 10), (1, 20), (2, 1)]
+        );
+        // From frame 0 the oldest predicted frame is three back (clamped at the motion start).
+        assert_eq!(batch.stacked_frames(0)[..3], [(0, 10), (1, 17), (2, 0)]);
+        assert!(batch.stacked_frames(4).is_empty());
     }
 }

@@ -212,6 +212,9 @@ pub struct LoopConfig {
     /// Learning-rate decay at the end of a bounded run: the fraction of the run it spans
     /// (0 = none) and the final factor ([`super::config::lr_schedule_factor`]).
     pub lr_decay: (f64, f64),
+    /// Steps over which the learning rate rises linearly from `1/warmup_steps` of its value to
+    /// all of it at the start of a run (0 = none).
+    pub warmup_steps: u64,
 }
 
 /// The handle the UI or CLI keeps. Dropping it stops the trainer and joins the thread.
@@ -449,13 +452,13 @@ fn run_loop<S: Session>(
             .into_iter()
             .chain(config.max_secs.map(|m| trained_secs / m.max(1e-9)))
             .fold(None, |a: Option<f64>, p| Some(a.map_or(p, |a| a.max(p))));
-        if let Some(progress) = progress {
-            let (fraction, final_factor) = config.lr_decay;
-            session.set_schedule_factor(super::config::lr_schedule_factor(
-                progress,
-                fraction,
-                final_factor,
-            ));
+        let (fraction, final_factor) = config.lr_decay;
+        let decay = progress.map_or(1.0, |p| {
+            super::config::lr_schedule_factor(p, fraction, final_factor)
+        });
+        let warmup = super::config::warmup_factor(step, config.warmup_steps);
+        if progress.is_some() || config.warmup_steps > 0 {
+            session.set_schedule_factor(decay * warmup);
         }
         let started = Instant::now();
         let result = session.step();

@@ -53,7 +53,7 @@ impl Session for Recording {
     }
 }
 
-fn factors_of(max_steps: Option<u64>, lr_decay: (f64, f64)) -> Vec<f64> {
+fn factors_of(max_steps: Option<u64>, lr_decay: (f64, f64), warmup_steps: u64) -> Vec<f64> {
     let factors = Arc::new(Mutex::new(Vec::new()));
     let session = Recording {
         factors: factors.clone(),
@@ -72,6 +72,7 @@ fn factors_of(max_steps: Option<u64>, lr_decay: (f64, f64)) -> Vec<f64> {
         warnings: Vec::new(),
         dead_limit_pct: 100.0,
         lr_decay,
+        warmup_steps,
     };
     let handle = TrainerHandle::spawn_session(session, config, None).unwrap();
     // Drain the events until the thread ends, so it never blocks on a full channel; an
@@ -89,13 +90,29 @@ fn factors_of(max_steps: Option<u64>, lr_decay: (f64, f64)) -> Vec<f64> {
 
 #[test]
 fn a_bounded_run_decays_its_learning_rate_over_its_last_steps_only() {
-    let f = factors_of(Some(10), (0.3, 0.1));
+    let f = factors_of(Some(10), (0.3, 0.1), 0);
     assert_eq!(f.len(), 10);
     // Progress before step k+1 is k / 10: flat up to 0.7, then the half cosine.
     assert!(f[..8].iter().all(|&x| x == 1.0), "{f:?}");
     assert!((f[8] - crate::train::config::lr_schedule_factor(0.8, 0.3, 0.1)).abs() < 1e-12);
     assert!(f[9] < f[8] && f[9] > 0.1, "{f:?}");
     // Without decay, or open-ended, the rate stays.
-    assert!(factors_of(Some(10), (0.0, 0.1)).iter().all(|&x| x == 1.0));
-    assert!(factors_of(None, (0.3, 0.1)).iter().all(|&x| x == 1.0));
+    assert!(
+        factors_of(Some(10), (0.0, 0.1), 0)
+            .iter()
+            .all(|&x| x == 1.0)
+    );
+    assert!(factors_of(None, (0.3, 0.1), 0).iter().all(|&x| x == 1.0));
+}
+
+#[test]
+fn the_learning_rate_warms_up_over_the_first_steps_of_open_and_bounded_runs() {
+    for max_steps in [Some(10), None] {
+        let f = factors_of(max_steps, (0.0, 0.1), 4);
+        assert_eq!(f[..5], [0.25, 0.5, 0.75, 1.0, 1.0], "{max_steps:?}: {f:?}");
+    }
+    // With a decay too, the two factors multiply.
+    let f = factors_of(Some(10), (0.3, 0.1), 4);
+    assert_eq!(f[0], 0.25);
+    assert!(f[9] < 1.0 && f[9] > 0.1, "{f:?}");
 }

@@ -413,6 +413,7 @@ fn loop_config(
         max_rollbacks: 8,
         dead_limit_pct: train.dead_limit_pct,
         lr_decay: (train.lr_decay_fraction, train.lr_final_factor),
+        warmup_steps: train.warmup_steps,
         warnings,
     }
 }

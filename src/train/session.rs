@@ -159,17 +159,23 @@ impl NeuralSession {
         Tensor::from_data(TensorData::new(data, shape), &self.device)
     }
 
-    /// Pinning targets of the last frame of `batch` (`[B, V, 3]`): the skinned template, where
+    /// Pinning targets of the predicted frames `first..K` of `batch`, stacked frame by frame
+    /// (`[(K - first)·B, V, 3]`, the order of [`stack_frames`]): the skinned template, where
     /// the reference simulator holds pinned vertices too. `None` when nothing is pinned or the
     /// scene's pinning effect is off.
-    fn pin_target(&self, batch: &Batch) -> Option<Tensor<3>> {
+    fn pin_target(&self, batch: &Batch, first: usize) -> Option<Tensor<3>> {
         self.terms.tensors().pinned.as_ref()?;
-        let (b, v) = (batch.size, self.garment.vertex_count());
+        let (b, v, k) = (batch.size, self.garment.vertex_count(), batch.predicted);
+        let frames = k.saturating_sub(first);
         let blended = self
-            .tensor4(batch.blended.clone(), [b, 3, v, 12])
-            .narrow(1, 2, 1);
-        let template = self.lbs.rest(Tensor::zeros([b, 1, v, 3], &self.device));
-        Some(super::losses::skin_blended(template, blended).reshape([b, v, 3]))
+            .tensor4(batch.blended.clone(), [b, k, v, 12])
+            .narrow(1, first, frames)
+            .swap_dims(0, 1)
+            .reshape([frames * b, 1, v, 12]);
+        let template = self
+            .lbs
+            .rest(Tensor::zeros([frames * b, 1, v, 3], &self.device));
+        Some(super::losses::skin_blended(template, blended).reshape([frames * b, v, 3]))
     }
 
     /// `(z_s + z_d, z_d)`, except for the last `augment` samples: their own static code
@@ -204,20 +210,20 @@ impl NeuralSession {
         (z_s + mixed_d.clone(), mixed_d)
     }
 
-    /// Posed garment `[B, 3, V, 3]` of the last three frames of `batch` whose first `still`
-    /// windows are still, with `augment` samples (the last ones) given another sample's
-    /// dynamic code and detached encoders.
+    /// Posed garment `[B, K, V, 3]` of the last `K = batch.predicted` frames of `batch` whose
+    /// first `still` windows are still, with `augment` samples (the last ones) given another
+    /// sample's dynamic code and detached encoders.
     fn predict(&mut self, batch: &Batch, still: usize, augment: usize) -> Tensor<4> {
-        let (b, t) = (batch.size, batch.frames);
+        let (b, t, k) = (batch.size, batch.frames, batch.predicted);
         let j = self.train.input_joints;
         let statics = self.tensor4(batch.static_desc.clone(), [b, t, j, 9]);
         let dynamics = (self.model.kind() != crate::model::EncoderKind::StaticOnly)
             .then(|| self.tensor4(batch.dynamic_desc.clone(), [b, t, j, 12]));
         let split_static = self.config.static_from_still && still > 0 && still < b;
         let offsets = if (augment == 0 && !split_static) || !self.model.has_dynamic_branch() {
-            self.model.forward_last(statics, dynamics, 1.0, 3)
+            self.model.forward_last(statics, dynamics, 1.0, k)
         } else {
-            let (z_s, z_d) = self.model.encode_last(statics, dynamics, 3);
+            let (z_s, z_d) = self.model.encode_last(statics, dynamics, k);
             match z_d {
                 Some(z_d) => {
                     let z_s = if split_static {
@@ -232,25 +238,27 @@ impl NeuralSession {
             }
         };
         let v = self.garment.vertex_count();
-        let blended = self.tensor4(batch.blended.clone(), [b, 3, v, 12]);
+        let blended = self.tensor4(batch.blended.clone(), [b, k, v, 12]);
         super::losses::skin_blended(self.lbs.rest(offsets), blended)
     }
 
-    /// Body contacts of the last frame `x_t` (when collision is on) and the static losses.
+    /// Body contacts (when collision is on) and static losses of `x_t`, the predicted frames
+    /// `first..K` of `batch` stacked frame by frame ([`stack_frames`]).
     fn static_losses(
         &self,
         data: &Dataset,
         batch: &Batch,
+        first: usize,
         x_t: &Tensor<3>,
     ) -> Result<(Option<Contacts>, LossTerms), TrainError> {
-        let bodies = self.bodies(data, batch)?;
+        let bodies = self.bodies(data, batch, first)?;
         let contacts = match &bodies {
             Some(bodies) => Some(self.terms.contacts(x_t, bodies)?),
             None => None,
         };
         let mut losses = self.terms.static_losses_with(x_t, contacts.as_ref())?;
         if let Some(pinning) = self
-            .pin_target(batch)
+            .pin_target(batch, first)
             .and_then(|target| self.terms.pinning(x_t, &target))
         {
             losses.push(crate::physics::Term::Pinning, pinning);
@@ -258,14 +266,20 @@ impl NeuralSession {
         Ok((contacts, losses))
     }
 
-    fn bodies(&self, data: &Dataset, batch: &Batch) -> Result<Option<BodyBatch>, TrainError> {
+    /// Posed bodies of the predicted frames `first..K` of `batch`, stacked frame by frame.
+    fn bodies(
+        &self,
+        data: &Dataset,
+        batch: &Batch,
+        first: usize,
+    ) -> Result<Option<BodyBatch>, TrainError> {
         if !self.terms.effects().collision {
             return Ok(None);
         }
         let bodies = batch
-            .windows
-            .iter()
-            .map(|&(m, f)| data.body(&self.avatar, m, f))
+            .stacked_frames(first)
+            .into_iter()
+            .map(|(m, f)| data.body(&self.avatar, m, f))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Some(BodyBatch::new(bodies)))
     }
@@ -322,6 +336,13 @@ fn frame(x: &Tensor<4>, k: usize) -> Tensor<3> {
     x.clone().narrow(1, k, 1).reshape([b, v, c])
 }
 
+/// The first `rows` samples of frames `from..to` of `x` (`[B, K, V, 3]`), stacked frame by
+/// frame: `[(to - from)·rows, V, 3]`, row `(k - from)·rows + s` holding sample `s` of frame `k`.
+fn stack_frames(x: &Tensor<4>, from: usize, to: usize, rows: usize) -> Tensor<3> {
+    let frames: Vec<Tensor<3>> = (from..to).map(|k| frame(x, k).narrow(0, 0, rows)).collect();
+    Tensor::cat(frames, 0)
+}
+
 impl Session for NeuralSession {
     fn step(&mut self) -> Result<MetricRecord, TrainError> {
         let b = self.config.batch_size;
@@ -338,21 +359,28 @@ impl Session for NeuralSession {
         } else {
             0
         };
-        let batch =
-            self.train
-                .batch_with_still(&windows, still, self.window_frames(), &self.garment.skin);
+        let predicted = self.config.loss_frames + 2;
+        let batch = self.train.batch_with_still(
+            &windows,
+            still,
+            self.window_frames(),
+            predicted,
+            &self.garment.skin,
+        );
         let x = self.predict(&batch, still, augment);
-        let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
-        let (contacts, losses) = self.static_losses(&self.train, &batch, &x_t)?;
+        // Every loss frame k in 2..K, stacked frame by frame: its static losses, and its
+        // inertia from the network's own two previous frames.
+        let x_t = stack_frames(&x, 2, predicted, b);
+        let (contacts, losses) = self.static_losses(&self.train, &batch, 2, &x_t)?;
         let mut total = losses
             .total()
             .unwrap_or_else(|| Tensor::zeros([1], &self.device));
         if self.terms.effects().dynamics {
             let kept = b - augment;
             let (xt, xt1, xt2) = (
-                x_t.clone().narrow(0, 0, kept),
-                x_t1.clone().narrow(0, 0, kept),
-                x_t2.clone().narrow(0, 0, kept),
+                stack_frames(&x, 2, predicted, kept),
+                stack_frames(&x, 1, predicted - 1, kept),
+                stack_frames(&x, 0, predicted - 2, kept),
             );
             let inertia = match self.config.inertia_mode {
                 InertiaMode::Ours => self.terms.inertia(&xt, &xt1, &xt2, self.config.dt_secs()),
@@ -379,20 +407,25 @@ impl Session for NeuralSession {
         // Per-step metrics on the first few windows only: they are a noisy monitor anyway, and
         // the full batch would cost a sizeable share of the step (validation uses every window).
         let n = b.min(STEP_METRIC_WINDOWS);
-        let head = |t: &Tensor<3>| t.clone().detach().narrow(0, 0, n);
+        let head = |t: Tensor<3>| t.detach().narrow(0, 0, n);
         let history = History {
-            x_t1: head(&x_t1),
-            x_t2: head(&x_t2),
+            x_t1: head(frame(&x, predicted - 2)),
+            x_t2: head(frame(&x, predicted - 3)),
             dt_secs: self.config.dt_secs(),
         };
+        // The last frame's block of the stacked contacts.
+        let last = (predicted - 3) * b;
+        let v = self.garment.vertex_count();
         let contacts = contacts.map(|c| crate::physics::Contacts {
-            points: c.points.narrow(0, 0, n),
-            normals: c.normals.narrow(0, 0, n),
-            distances_m: c.distances_m[..n * self.garment.vertex_count()].to_vec(),
+            points: c.points.narrow(0, last, n),
+            normals: c.normals.narrow(0, last, n),
+            distances_m: c.distances_m[last * v..(last + n) * v].to_vec(),
         });
-        let metrics = self
-            .terms
-            .metrics(&head(&x_t), contacts.as_ref(), Some(&history))?;
+        let metrics = self.terms.metrics(
+            &head(frame(&x, predicted - 1)),
+            contacts.as_ref(),
+            Some(&history),
+        )?;
         Ok(self.record(&metrics, loss))
     }
 
@@ -406,7 +439,7 @@ impl Session for NeuralSession {
         if windows.is_empty() {
             return Err(TrainError::NoValidationFrames);
         }
-        let batch = data.batch(&windows, self.window_frames(), &self.garment.skin);
+        let batch = data.batch(&windows, self.window_frames(), 3, &self.garment.skin);
         let x = self.predict(&batch, 0, 0).detach();
         let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
         let data = if self.validation.is_empty() {
@@ -414,7 +447,7 @@ impl Session for NeuralSession {
         } else {
             &self.validation
         };
-        let (contacts, losses) = self.static_losses(data, &batch, &x_t)?;
+        let (contacts, losses) = self.static_losses(data, &batch, 2, &x_t)?;
         let mut loss = losses
             .total()
             .map(|t| t.into_scalar::<f64>())
