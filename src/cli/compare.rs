@@ -114,7 +114,9 @@ pub fn table(report: &CompareReport) -> String {
     let _ = writeln!(
         s,
         "still frame: every joint slower than {} m/s for the last {} s; swing: mean distance \
-         from the quasi-static result (network at w = 0, simulator without dynamics)",
+         from the quasi-static result (network at w = 0, simulator without dynamics); slip: \
+         the part of a difference that is a rigid motion of the whole garment (a frictionless \
+         garment slides over the body), shape: what is left after it",
         o.still_speed_m_per_s, o.still_window_secs
     );
     for m in &report.motions {
@@ -175,6 +177,18 @@ fn motion_table(s: &mut String, m: &MotionComparison) {
         ("swing simulator, mm", r.amplitude.simulator),
     ] {
         row(label, [Some(a.all_mm), a.still_mm, a.moving_mm], 1);
+    }
+    if let Some(rigid) = &r.rigid {
+        // Over all frames only: a frame's best rigid motion is fitted per frame.
+        for (label, value) in [
+            ("distance after rigid fit, mm", rigid.shape_distance_mm),
+            ("slip network, mm", rigid.network_slip_mm),
+            ("slip simulator, mm", rigid.simulator_slip_mm),
+            ("shape swing network, mm", rigid.network_shape_swing_mm),
+            ("shape swing simulator, mm", rigid.simulator_shape_swing_mm),
+        ] {
+            row(label, [Some(value), None, None], 1);
+        }
     }
     if let Some(hem) = &r.hem {
         type Radius = (&'static str, fn(&HemPair) -> f64);

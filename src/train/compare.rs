@@ -17,6 +17,9 @@
 //! - **hem radius** for garments whose hem reaches below the hips ([`reaches_below_hips`]):
 //!   the mean horizontal distance of the hem vertices (lowest 15 % of the template) from the
 //!   vertical axis through the root joint, on still and on moving frames;
+//! - **rigid slip and shape** ([`rigid_split`]): the distance and both swings after each
+//!   frame's best rigid motion of the whole garment, which a frictionless garment's sliding
+//!   over the body makes up much of;
 //! - the paper's §4.2 **metrics** of both sequences (as `eval`).
 //!
 //! The reference is simulated with the report's reference settings (200 L-BFGS iterations per
@@ -26,6 +29,7 @@
 mod cache;
 mod measure;
 mod record;
+mod rigid;
 
 pub use cache::{REFERENCE_TOLERANCE, Reference, reference_dir, reference_for};
 pub use measure::{
@@ -34,6 +38,7 @@ pub use measure::{
     mean_where, measure_motion, reaches_below_hips, still_frames,
 };
 pub use record::{TrainingCheck, append_checks, read_checks};
+pub use rigid::{RigidFit, RigidSplit, best_rigid_fit, rigid_split};
 
 use std::path::PathBuf;
 use std::sync::Arc;

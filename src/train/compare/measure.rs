@@ -278,6 +278,10 @@ pub struct MotionMeasures {
     pub amplitude: Amplitude,
     /// Hem radius (`None` for garments that end above the hips).
     pub hem: Option<HemComparison>,
+    /// The distance and both swings split into rigid slip and shape (`None` in checks
+    /// recorded before it was measured).
+    #[serde(default)]
+    pub rigid: Option<super::RigidSplit>,
 }
 
 /// Measures `seq` on `poses` (one frame each) with the still flags `still`.
@@ -349,6 +353,12 @@ pub fn measure_motion(
             simulator: amplitude(seq.simulator, seq.simulator_static)?,
         },
         hem,
+        rigid: Some(super::rigid_split(
+            seq.network,
+            seq.network_static,
+            seq.simulator,
+            seq.simulator_static,
+        )?),
     })
 }
 
