@@ -211,6 +211,29 @@ fn render_verdicts(s: &mut String, checks: &[TrainingCheck]) {
                     Some(net >= SWING_FRACTION * sim),
                 );
             }
+            // Not the wording: the same two measures with each frame's rigid motion of
+            // the whole garment (a frictionless garment's slip over the body) taken out.
+            if let Some(rigid) = m.rigid {
+                row(
+                    "(diagnostic) distance after each frame's rigid fit",
+                    format!("{:.1} mm", rigid.shape_distance_mm),
+                    None,
+                );
+                row(
+                    "(diagnostic) shape swing ≥ half the simulator's",
+                    format!(
+                        "{:.1} / {:.1} mm (slip {:.1} / {:.1})",
+                        rigid.network_shape_swing_mm,
+                        rigid.simulator_shape_swing_mm,
+                        rigid.network_slip_mm,
+                        rigid.simulator_slip_mm
+                    ),
+                    Some(
+                        rigid.network_shape_swing_mm
+                            >= SWING_FRACTION * rigid.simulator_shape_swing_mm,
+                    ),
+                );
+            }
         }
         row(
             "no dead network, no NaN",
@@ -294,6 +317,29 @@ mod tests {
         assert!(s.contains("0.199 / 0.136 m | **not met** |"), "{s}");
         assert!(s.contains("| hem opening ≥ 70 % of the simulator's | 54 % | **not met** |"));
         assert!(s.contains("| moving hem radius monotone in w | w = 0, 1 | **not met** |"));
+    }
+
+    #[test]
+    fn the_rigid_split_of_a_shirt_is_shown_as_a_diagnostic() {
+        let mut c = check(1.0, 0.0, 0.0);
+        c.motion.measures.hem = None;
+        c.motion.measures.amplitude.network.moving_mm = Some(14.0);
+        c.motion.measures.amplitude.simulator.moving_mm = Some(33.0);
+        c.motion.measures.rigid = Some(crate::train::compare::RigidSplit {
+            shape_distance_mm: 22.5,
+            network_slip_mm: 3.8,
+            network_shape_swing_mm: 12.8,
+            simulator_slip_mm: 28.5,
+            simulator_shape_swing_mm: 18.6,
+        });
+        let mut s = String::new();
+        render_training_checks(&mut s, &[c]);
+        assert!(s.contains("| swing ≥ half the simulator's | 14.0 / 33.0 mm | **not met** |"));
+        assert!(s.contains("| (diagnostic) distance after each frame's rigid fit | 22.5 mm | — |"));
+        assert!(
+            s.contains("12.8 / 18.6 mm (slip 3.8 / 28.5) | met |"),
+            "{s}"
+        );
     }
 
     #[test]
