@@ -5,7 +5,8 @@
 //! that no importer panics. The USD export is read back by Pixar's usd-core and checked with
 //! its validators (`io/usd_export.rs`). Retargeting across rig naming conventions, rest poses,
 //! glTF rigs and joint maps, on fixtures written by our own code (`io/rigs.rs`); by skeleton
-//! structure where the joint names say nothing (`io/structure.rs`). Garment
+//! structure where the joint names say nothing (`io/structure.rs`). Z-up BVH, GLB and OBJ files
+//! turned Y up (`io/up_axis.rs`). Garment
 //! fitting on built-in and MakeHuman garments, and the `fit` command (`io/fit.rs`). Characters
 //! built partly of rigid meshes parented to bones (`io/rigid_parts.rs`).
 //!
@@ -31,6 +32,8 @@ mod rigid_parts;
 mod rigs;
 #[path = "io/structure.rs"]
 mod structure;
+#[path = "io/up_axis.rs"]
+mod up_axis;
 #[path = "io/usd_export.rs"]
 mod usd_export;
 

@@ -8,7 +8,7 @@ use anyhow::Context;
 
 use neural_cloth::fit::{FitOptions, Fitted, MirrorMode, RelaxSettings, fit_file, write_obj};
 use neural_cloth::geometry::Vec3;
-use neural_cloth::io::{ImportOptions, Units, load_avatar};
+use neural_cloth::io::{ImportOptions, Units, UpAxis, load_avatar};
 use neural_cloth::scene::Avatar;
 
 /// Arguments of `fit`.
@@ -27,6 +27,9 @@ pub struct FitArgs {
     /// the avatar's height).
     #[arg(long, value_parser = parse_units)]
     pub units: Option<Units>,
+    /// Up axis of the garment file: auto (detected from its shape), y or z.
+    #[arg(long, default_value = "auto")]
+    pub up: UpAxis,
     /// Uniform scale of the garment about its centre, after the unit conversion (default:
     /// estimated within --scale-range).
     #[arg(long)]
@@ -135,6 +138,7 @@ fn options(args: &FitArgs) -> FitOptions {
     };
     FitOptions {
         units: args.units.unwrap_or(Units::Auto),
+        up: args.up,
         scale: args.scale,
         scale_range: args.scale_range.unwrap_or(defaults.scale_range),
         offset_m: args.offset,
@@ -179,6 +183,7 @@ fn summary(fitted: &Fitted, avatar: &Avatar, args: &FitArgs) -> String {
     format!(
         "fitted '{}' ({} vertices) onto avatar '{}' ({:.2} m tall)\n\
          \x20 units:   {} ({how_units})\n\
+         \x20 up:      {} ({})\n\
          \x20 mirrored left/right: {}{}\n\
          \x20 scale:   {:.3} about the garment's centre{}\n\
          \x20 offset:  ({:.3}, {:.3}, {:.3}) m of the garment's centre{}\n\
@@ -189,6 +194,13 @@ fn summary(fitted: &Fitted, avatar: &Avatar, args: &FitArgs) -> String {
         avatar.name,
         avatar.height_m(),
         r.units.label(),
+        r.up.label(),
+        match (args.up, r.up) {
+            (UpAxis::Auto, UpAxis::Z) => "detected from its shape; turned Y up",
+            (UpAxis::Auto, _) => "detected from its shape",
+            (_, UpAxis::Z) => "as given; turned Y up",
+            _ => "as given",
+        },
         yes_no(p.mirrored),
         if args.mirror == MirrorMode::Auto {
             " (detected from the faces' winding)"

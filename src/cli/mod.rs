@@ -44,6 +44,9 @@ pub enum Command {
         /// mapping; needs --avatar.
         #[arg(long)]
         joint_map: Option<PathBuf>,
+        /// Up axis of FILE: auto (detected from its skeleton, or an OBJ mesh's shape), y or z.
+        #[arg(long, default_value = "auto")]
+        up: neural_cloth::io::UpAxis,
     },
     /// Fit a garment made for another body, in other units or placed elsewhere onto the
     /// avatar's rest pose, relaxed by the simulator; writes an OBJ to train on.
@@ -92,7 +95,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             file,
             avatar,
             joint_map,
-        }) => inspect::run(&file, avatar.as_deref(), joint_map.as_deref()),
+            up,
+        }) => inspect::run(&file, avatar.as_deref(), joint_map.as_deref(), up),
         Some(Command::Fit(args)) => fit::run(args),
         Some(Command::Train(args)) => train::run(*args),
         Some(Command::Eval(args)) => train::eval(args),

@@ -26,7 +26,7 @@ use std::path::{Path, PathBuf};
 
 use crate::geometry::{TriMesh, Vec3};
 use crate::io::export::ExportError;
-use crate::io::{ImportOptions, IoError, Units};
+use crate::io::{ImportOptions, IoError, Units, UpAxis};
 use crate::physics::PhysicsError;
 use crate::scene::{Avatar, SceneError};
 
@@ -91,6 +91,8 @@ pub enum MirrorMode {
 pub struct FitOptions {
     /// Length unit of the garment's file; `Auto` (default) chooses from its size.
     pub units: Units,
+    /// Up axis of the garment's file; `Auto` (default) detects it from its shape.
+    pub up: UpAxis,
     /// A fixed uniform scale (after the unit conversion) instead of an estimated one; > 0.
     pub scale: Option<f32>,
     /// Smallest and largest estimated scale, in (0, 100] with lo <= hi; default (0.7, 1.45): a garment made for a person of 1.2 to 2.5 m on one of 1.75 m.
@@ -113,6 +115,7 @@ impl Default for FitOptions {
     fn default() -> Self {
         Self {
             units: Units::Auto,
+            up: UpAxis::Auto,
             scale: None,
             scale_range: (0.7, 1.45),
             scale_dead_zone: 0.05,
@@ -170,6 +173,8 @@ pub struct FitReport {
     pub units: Units,
     /// Whether the unit was chosen by the fit (not given).
     pub units_detected: bool,
+    /// The file's up axis, as given or detected (a Z-up garment is turned Y up first).
+    pub up: UpAxis,
     /// The placement after the unit conversion: mirror, scale about the garment's centre,
     /// translation of the centre (metres).
     pub placement: Placement,
@@ -273,6 +278,7 @@ pub fn choose_units(requested: Units, extent: f32, body_height_m: f32) -> Units 
 pub fn fit_file(avatar: &Avatar, path: &Path, options: &FitOptions) -> Result<Fitted, FitError> {
     let raw = ImportOptions {
         units: Units::Metres,
+        up: options.up,
         ..Default::default()
     };
     let ext = path
@@ -290,7 +296,9 @@ pub fn fit_file(avatar: &Avatar, path: &Path, options: &FitOptions) -> Result<Fi
             .into());
         }
     };
-    fit_mesh(avatar, &loaded.name, &loaded.mesh, path, options)
+    let mut fitted = fit_mesh(avatar, &loaded.name, &loaded.mesh, path, options)?;
+    fitted.report.up = loaded.up;
+    Ok(fitted)
 }
 
 /// Fits the garment `mesh` (in its file's units, as read) to `avatar`'s rest pose. `name`
@@ -344,6 +352,7 @@ pub fn fit_mesh(
         report: FitReport {
             units,
             units_detected: options.units == Units::Auto,
+            up: UpAxis::Y,
             placement,
             fit_share,
             vertices: given.vertex_count(),

@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use super::units::{Units, largest_extent};
-use super::{IoError, read_bytes};
+use super::{IoError, UpAxis, read_bytes};
 use crate::geometry::{Mat4, Quat, Vec3};
 use crate::scene::{JointTransform, Motion, Pose, Skeleton};
 
@@ -80,6 +80,10 @@ pub struct Bvh {
     pub values: Vec<f32>,
     /// Non-fatal problems found while parsing.
     pub warnings: Vec<String>,
+    /// Which axis of the file is up ([`UpAxis::Auto`] after parsing: detected from the rest
+    /// pose, see [`Bvh::up_axis`]); set it to override. A Z-up file is turned Y up by
+    /// [`Bvh::to_skeleton`] and by retargeting.
+    pub up: UpAxis,
 }
 
 /// Loads and parses a BVH file.
@@ -177,15 +181,23 @@ impl Bvh {
         joints.into_iter().chain(ends).collect()
     }
 
+    /// The up axis this file is read with: [`Bvh::up`], or detected from the rest skeleton's
+    /// structure (see [`UpAxis::detect_body`]); and whether it was detected.
+    pub fn up_axis(&self) -> (UpAxis, bool) {
+        let parents: Vec<Option<usize>> = self.joints.iter().map(|j| j.parent).collect();
+        self.up.resolve_body(&parents, &self.rest_positions())
+    }
+
     /// The unit this file is in: `units`, or detected from the rest skeleton's extent.
     pub fn resolve_units(&self, units: Units) -> (Units, f32) {
         units.resolve(largest_extent(&self.rest_points()), Units::detect_mocap)
     }
 
-    /// The BVH's own skeleton in metres (rest = zero rotations; unit scale in
-    /// `world_from_root_parent`), with the unit used.
+    /// The BVH's own skeleton in metres, Y up (rest = zero rotations; unit scale and the turn
+    /// from Z up in `world_from_root_parent`), with the unit used.
     pub fn to_skeleton(&self, units: Units) -> Result<(Skeleton, Units), IoError> {
         let (units, scale) = self.resolve_units(units);
+        let root_space = Mat4::new_scaling(scale) * self.up_axis().0.to_y_up().to_homogeneous();
         let mut names: Vec<String> = Vec::with_capacity(self.joints.len());
         for (j, joint) in self.joints.iter().enumerate() {
             names.push(if names.contains(&joint.name) {
@@ -209,7 +221,7 @@ impl Bvh {
             .iter()
             .map(|j| {
                 if j.parent.is_none() {
-                    Mat4::new_scaling(scale)
+                    root_space
                 } else {
                     Mat4::identity()
                 }

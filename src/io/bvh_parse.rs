@@ -279,6 +279,7 @@ impl Bvh {
             frames,
             values,
             warnings,
+            up: super::UpAxis::Auto,
         };
         let extent = largest_extent(&bvh.rest_points());
         let zero: Vec<&str> = bvh

@@ -13,7 +13,7 @@ use std::path::Path;
 use super::gltf_body::{BindMesh, merge_body};
 use super::gltf_doc::GltfDoc;
 use super::{ImportOptions, IoError, LoadedAvatar, Units, check_fps, file_stem, read_bytes};
-use crate::geometry::{Mat4, linear_blend_skin};
+use crate::geometry::{Mat4, Vec3, linear_blend_skin};
 use crate::scene::{Avatar, Skeleton};
 
 /// Loads a skinned avatar from a `.glb` or `.gltf` file.
@@ -39,14 +39,19 @@ pub fn load_avatar_from_bytes(
         path: path.to_path_buf(),
     };
 
-    // Units from the rest-mesh height in file units.
+    // Up axis from the rest mesh's shape, units from its height in file units.
     let rest = linear_blend_skin(
         &mesh.positions,
         &skin,
         &skeleton.skin_from_bind(&skeleton.rest_pose()),
     );
-    let height = rest.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max)
-        - rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    let joints: Vec<Vec3> = skeleton.joint_positions(&skeleton.rest_pose());
+    let (up, detected) = options.up.resolve_body(&skeleton.parents, &joints);
+    warnings.extend(up.turned_warning(detected));
+    let turn = up.to_y_up();
+    let heights = rest.iter().map(|p| (turn * p).y);
+    let height =
+        heights.clone().fold(f32::NEG_INFINITY, f32::max) - heights.fold(f32::INFINITY, f32::min);
     let (units, scale) = options.units.resolve(height, Units::detect_gltf);
     if options.units == Units::Auto && units != Units::Metres {
         warnings.push(format!(
@@ -56,8 +61,9 @@ pub fn load_avatar_from_bytes(
     }
     for (j, parent) in skeleton.parents.iter().enumerate() {
         if parent.is_none() {
-            skeleton.world_from_root_parent[j] =
-                Mat4::new_scaling(scale) * skeleton.world_from_root_parent[j];
+            skeleton.world_from_root_parent[j] = Mat4::new_scaling(scale)
+                * turn.to_homogeneous()
+                * skeleton.world_from_root_parent[j];
         }
     }
     report_zero_length_bones(&skeleton, &rig.added, height, &mut warnings);
@@ -75,6 +81,7 @@ pub fn load_avatar_from_bytes(
     Ok(LoadedAvatar {
         avatar,
         units,
+        up,
         warnings,
         meshes,
     })

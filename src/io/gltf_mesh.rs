@@ -7,7 +7,7 @@ use std::path::Path;
 use super::gltf_avatar::primitive_triangles;
 use super::gltf_doc::GltfDoc;
 use super::units::largest_extent;
-use super::{ImportOptions, IoError, LoadedMesh, Units, file_stem, read_bytes};
+use super::{ImportOptions, IoError, LoadedMesh, Units, UpAxis, file_stem, read_bytes};
 use crate::geometry::{TriMesh, Vec3};
 
 /// Loads a (possibly unskinned) glTF/GLB mesh as a garment template.
@@ -122,6 +122,12 @@ pub fn load_gltf_mesh_from_bytes(
             path: path.to_path_buf(),
         });
     }
+    // glTF is Y up by its specification: turned only when told.
+    let up = match options.up {
+        UpAxis::Auto => UpAxis::Y,
+        given => given,
+    };
+    let turn = up.to_y_up();
     let extent = largest_extent(&positions);
     let (units, scale) = options.units.resolve(extent, Units::detect_gltf);
     if options.units == Units::Auto && units != Units::Metres {
@@ -136,13 +142,14 @@ pub fn load_gltf_mesh_from_bytes(
         faces,
         uvs,
     };
-    mesh.map_positions(|p| p * scale);
+    mesh.map_positions(|p| turn * p * scale);
     mesh.validate()
         .map_err(|e| doc.invalid(format!("mesh: {e}")))?;
     Ok(LoadedMesh {
         name: file_stem(path),
         mesh,
         units,
+        up,
         warnings,
     })
 }

@@ -1,6 +1,7 @@
 //! A human-readable report on any supported file (glb, gltf, obj, bvh): joints as a short
 //! tree, vertices and faces, every mesh of an avatar and how it was used (skinned, rigid part
-//! of a joint, ignored and why), animations with frame counts and durations, units, warnings.
+//! of a joint, ignored and why), animations with frame counts and durations, units, the up
+//! axis, warnings.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -8,19 +9,24 @@ use std::path::Path;
 use super::joint_map::JointMap;
 use super::joint_names::classify;
 use super::retarget::{SourceMotion, joint_mapping};
-use super::{ImportOptions, IoError, LoadedMesh, MeshUsage, MeshUse, Units};
+use super::{ImportOptions, IoError, LoadedMesh, MeshUsage, MeshUse, Units, UpAxis};
 use crate::geometry::TriMesh;
 
 /// Most lines of the joint tree shown before it is cut short.
 const MAX_TREE_LINES: usize = 40;
 
-/// Loads `path` by its extension and describes what it holds.
+/// Loads `path` by its extension and describes what it holds (units and up axis detected).
 pub fn inspect(path: &Path) -> Result<String, IoError> {
+    inspect_with(path, &ImportOptions::default())
+}
+
+/// Loads `path` by its extension with `options` (units, up axis) and describes what it holds.
+pub fn inspect_with(path: &Path, options: &ImportOptions) -> Result<String, IoError> {
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    let options = ImportOptions::default();
+    let options = options.clone();
     let mut out = String::new();
     let _ = writeln!(out, "file: {}", path.display());
     match ext.as_str() {
@@ -29,6 +35,7 @@ pub fn inspect(path: &Path) -> Result<String, IoError> {
                 let a = &loaded.avatar;
                 let _ = writeln!(out, "kind: skinned glTF avatar");
                 units_line(&mut out, options.units, loaded.units);
+                up_line(&mut out, options.up, loaded.up, false);
                 let _ = writeln!(out, "height: {:.3} m", a.height_m());
                 joint_tree(&mut out, &a.skeleton.names, &a.skeleton.parents);
                 mesh_lines(&mut out, "body", &a.bind_mesh);
@@ -49,20 +56,24 @@ pub fn inspect(path: &Path) -> Result<String, IoError> {
             Err(IoError::NoSkin { .. }) => {
                 let loaded = super::load_gltf_mesh(path, &options)?;
                 let _ = writeln!(out, "kind: glTF mesh without a skin (usable as a garment)");
-                static_mesh(&mut out, &options, &loaded);
+                static_mesh(&mut out, &options, &loaded, true);
             }
             Err(e) => return Err(e),
         },
         "obj" => {
             let loaded = super::load_obj(path, &options)?;
             let _ = writeln!(out, "kind: OBJ mesh");
-            static_mesh(&mut out, &options, &loaded);
+            static_mesh(&mut out, &options, &loaded, false);
         }
         "bvh" => {
-            let bvh = super::load_bvh(path)?;
-            let (units, scale) = bvh.resolve_units(Units::Auto);
+            let mut bvh = super::load_bvh(path)?;
+            bvh.up = options.up;
+            let (units, scale) = bvh.resolve_units(options.units);
+            let (up, detected) = bvh.up_axis();
+            bvh.warnings.extend(up.turned_warning(detected));
             let _ = writeln!(out, "kind: BVH motion capture");
-            units_line(&mut out, Units::Auto, units);
+            units_line(&mut out, options.units, units);
+            up_line(&mut out, options.up, up, false);
             let names: Vec<String> = bvh.joints.iter().map(|j| j.name.clone()).collect();
             let parents: Vec<Option<usize>> = bvh.joints.iter().map(|j| j.parent).collect();
             joint_tree(&mut out, &names, &parents);
@@ -75,7 +86,8 @@ pub fn inspect(path: &Path) -> Result<String, IoError> {
                 bvh.fps(),
                 bvh.duration_secs()
             );
-            let rest = bvh.rest_positions();
+            let turn = up.to_y_up();
+            let rest: Vec<_> = bvh.rest_positions().iter().map(|p| turn * p).collect();
             let low = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
             if let Some(root) = rest.first() {
                 let _ = writeln!(
@@ -114,8 +126,9 @@ pub fn inspect_mapping(
     path: &Path,
     avatar: &Path,
     joint_map: Option<&JointMap>,
+    options: &ImportOptions,
 ) -> Result<String, IoError> {
-    let mut out = inspect(path)?;
+    let mut out = inspect_with(path, options)?;
     let scene_err = |source| IoError::Scene {
         source,
         path: avatar.to_path_buf(),
@@ -128,9 +141,13 @@ pub fn inspect_mapping(
             .skeleton
     };
     let source = match ext_of(path).as_str() {
-        "bvh" => SourceMotion::from_bvh(&super::load_bvh(path)?),
+        "bvh" => {
+            let mut bvh = super::load_bvh(path)?;
+            bvh.up = options.up;
+            SourceMotion::from_bvh(&bvh)
+        }
         _ => {
-            let rig = super::load_avatar(path, &ImportOptions::default())?.avatar;
+            let rig = super::load_avatar(path, options)?.avatar;
             let rest = crate::scene::Motion::new(
                 "rest",
                 30.0,
@@ -188,8 +205,24 @@ fn units_line(out: &mut String, asked: Units, used: Units) {
     );
 }
 
-fn static_mesh(out: &mut String, options: &ImportOptions, loaded: &LoadedMesh) {
+/// Writes `up: AXIS (given, detected or as glTF specifies[; turned Y up])`.
+fn up_line(out: &mut String, asked: UpAxis, used: UpAxis, gltf_mesh: bool) {
+    let how = match (asked, gltf_mesh) {
+        (UpAxis::Auto, false) => "detected",
+        (UpAxis::Auto, true) => "as glTF specifies",
+        _ => "given",
+    };
+    let turned = if used == UpAxis::Z {
+        "; turned Y up"
+    } else {
+        ""
+    };
+    let _ = writeln!(out, "up: {} ({how}{turned})", used.label());
+}
+
+fn static_mesh(out: &mut String, options: &ImportOptions, loaded: &LoadedMesh, gltf: bool) {
     units_line(out, options.units, loaded.units);
+    up_line(out, options.up, loaded.up, gltf);
     mesh_lines(out, "mesh", &loaded.mesh);
     if let Some((lo, hi)) = loaded.mesh.bounds() {
         let size = hi - lo;

@@ -7,6 +7,7 @@
 //! naming the file instead of panicking. Each loader also has a `*_from_bytes` form that takes
 //! the bytes and the path they came from (used for names, relative resources and messages).
 
+pub mod axes;
 pub mod bvh;
 mod bvh_parse;
 pub mod bvh_write;
@@ -27,6 +28,7 @@ pub mod retarget;
 pub mod scene_loader;
 pub mod units;
 
+pub use axes::UpAxis;
 pub use bvh::{Bvh, BvhChannel, BvhJoint, load_bvh};
 pub use gltf_avatar::{load_avatar, load_avatar_from_bytes};
 pub use gltf_body::{MeshUsage, MeshUse};
@@ -49,6 +51,9 @@ pub struct ImportOptions {
     pub units: Units,
     /// Rate at which animations are resampled, in frames per second; (0, 1000], default 30.
     pub fps: f32,
+    /// Which axis of the file is up; [`UpAxis::Auto`] (default) detects it from the shape.
+    /// Z-up files are turned Y up.
+    pub up: UpAxis,
 }
 
 impl Default for ImportOptions {
@@ -56,6 +61,7 @@ impl Default for ImportOptions {
         Self {
             units: Units::Auto,
             fps: 30.0,
+            up: UpAxis::Auto,
         }
     }
 }
@@ -69,6 +75,8 @@ pub struct LoadedMesh {
     pub mesh: crate::geometry::TriMesh,
     /// The unit the file was read in (never `Auto`).
     pub units: Units,
+    /// The file's up axis, as given or detected (never `Auto`); the mesh is Y up.
+    pub up: UpAxis,
     /// Non-fatal problems (dropped UVs, ignored elements, guessed units).
     pub warnings: Vec<String>,
 }
@@ -80,6 +88,8 @@ pub struct LoadedAvatar {
     pub avatar: crate::scene::Avatar,
     /// The unit the file was read in (never `Auto`).
     pub units: Units,
+    /// The file's up axis, as given or detected (never `Auto`); the avatar is Y up.
+    pub up: UpAxis,
     /// Non-fatal problems (ignored channels, morph targets, zero-length bones, meshes left
     /// out of the body, ...).
     pub warnings: Vec<String>,

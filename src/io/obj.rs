@@ -157,6 +157,9 @@ pub fn load_obj_from_bytes(
                 .collect(),
         )
     };
+    let (up, detected) = options.up.resolve(&positions);
+    warnings.extend(up.turned_warning(detected));
+    let turn = up.to_y_up();
     let extent = largest_extent(&positions);
     let (units, scale) = options.units.resolve(extent, Units::detect_mesh);
     if options.units == Units::Auto && units != Units::Metres {
@@ -170,7 +173,7 @@ pub fn load_obj_from_bytes(
         faces,
         uvs,
     };
-    mesh.map_positions(|p| p * scale);
+    mesh.map_positions(|p| turn * p * scale);
     mesh.validate().map_err(|e| IoError::Syntax {
         format: "OBJ",
         line: 0,
@@ -181,6 +184,7 @@ pub fn load_obj_from_bytes(
         name: file_stem(path),
         mesh,
         units,
+        up,
         warnings,
     })
 }

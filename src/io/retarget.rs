@@ -9,7 +9,8 @@
 //! (a T-pose clip on an A-pose avatar raises the arms). Unmapped joints keep their rest local
 //! rotation. The root translation is scaled by the ratio of hip heights above the lowest joint
 //! (leg lengths, so the motion's units do not matter), grounded on the lowest joint and
-//! optionally re-centred horizontally. Both rigs are taken to be Y up.
+//! optionally re-centred horizontally. Both rigs are Y up (a Z-up BVH is turned Y up when it
+//! is read, see [`Bvh::up_axis`]).
 
 use std::path::PathBuf;
 
@@ -69,12 +70,18 @@ pub struct SourceMotion {
     pub frames: Vec<Vec<(Quat, Vec3)>>,
     /// Metres per file unit used when hip heights are unusable, and the unit's name.
     pub fallback_scale: (f32, &'static str),
+    /// What reading the motion noticed (a Z-up file turned Y up); [`retarget`] passes these
+    /// on with its own warnings.
+    pub warnings: Vec<String>,
 }
 
 impl SourceMotion {
-    /// A BVH's motion (rest: every rotation zero).
+    /// A BVH's motion (rest: every rotation zero), turned Y up when the file is Z up (see
+    /// [`Bvh::up_axis`]).
     pub fn from_bvh(bvh: &Bvh) -> Self {
         let (units, scale) = bvh.resolve_units(super::Units::Auto);
+        let (up, detected) = bvh.up_axis();
+        let turn = up.to_y_up();
         Self {
             name: bvh.name.clone(),
             path: bvh.path.clone(),
@@ -84,10 +91,18 @@ impl SourceMotion {
             rest: bvh
                 .rest_positions()
                 .into_iter()
-                .map(|p| (Quat::identity(), p))
+                .map(|p| (turn, turn * p))
                 .collect(),
-            frames: (0..bvh.frame_count()).map(|f| bvh.world(f)).collect(),
+            frames: (0..bvh.frame_count())
+                .map(|f| {
+                    bvh.world(f)
+                        .into_iter()
+                        .map(|(q, p)| (turn * q, turn * p))
+                        .collect()
+                })
+                .collect(),
             fallback_scale: (scale, units.label()),
+            warnings: up.turned_warning(detected).into_iter().collect(),
         }
     }
 
@@ -109,6 +124,7 @@ impl SourceMotion {
             rest: world(&skeleton.rest_pose()),
             frames: motion.frames.iter().map(world).collect(),
             fallback_scale: (1.0, "metres"),
+            warnings: Vec::new(),
         }
     }
 
@@ -166,7 +182,7 @@ pub fn retarget(
     let mapping = joint_mapping(source, skeleton, options.joint_map.as_ref())?;
     mapping.check_essential(&skeleton.names, &source.names, &source.path)?;
     let map = &mapping.source;
-    let mut warnings = Vec::new();
+    let mut warnings = source.warnings.clone();
     let by_structure: Vec<String> = (0..n)
         .filter(|&a| mapping.how[a] == Some(MatchKind::Structure))
         .filter_map(|a| {

@@ -109,6 +109,7 @@ impl<'a> SceneLoader<'a> {
                 let options = ImportOptions {
                     units: units_of(*units),
                     fps: self.config.training_fps,
+                    ..Default::default()
                 };
                 let loaded = load_avatar(&file, &options)?;
                 warnings.extend(note_all(&file, &loaded.warnings));
@@ -337,6 +338,7 @@ pub fn load_motions(
                 &ImportOptions {
                     units: how.units,
                     fps: how.fps,
+                    ..Default::default()
                 },
             )?;
             warnings.extend(loaded.warnings.iter().map(note));

@@ -202,7 +202,7 @@ fn a_larger_rig_with_helpers_fingers_and_end_joints_maps_by_structure() {
     assert!(err < 2e-3, "joints off by {err} m");
 
     // inspect shows each joint and how it was found.
-    let report = inspect_mapping(&path, Path::new("mannequin"), None).unwrap();
+    let report = inspect_mapping(&path, Path::new("mannequin"), None, &super::opts()).unwrap();
     for (canonical, j) in [("LeftArm", 7usize), ("RightUpLeg", 18), ("Head", 5)] {
         let line = format!("{canonical} <- {} (structure)", names[rig.index[j]]);
         assert!(report.contains(&line), "missing '{line}' in:\n{report}");
@@ -226,7 +226,8 @@ fn a_joint_map_and_names_come_before_structure() {
     let map_path = dir.path().join("map.toml");
     std::fs::write(&map_path, format!("[joints]\nLeftArm = \"{}\"\n", names[7])).unwrap();
     let map = JointMap::load(&map_path).unwrap();
-    let report = inspect_mapping(&path, Path::new("mannequin"), Some(&map)).unwrap();
+    let report =
+        inspect_mapping(&path, Path::new("mannequin"), Some(&map), &super::opts()).unwrap();
     for line in [
         "Hips <- Hips (rig names)".to_string(),
         format!("LeftArm <- {} (joint map)", names[7]),
@@ -351,6 +352,7 @@ fn an_avatar_whose_names_say_nothing_takes_a_cmu_clip_by_structure() {
         &super::asset("motions/cmu_02_01_walk.bvh"),
         &super::asset("avatars/CesiumMan.glb"),
         None,
+        &super::opts(),
     )
     .unwrap();
     for line in [
