@@ -6,8 +6,9 @@
 //!
 //! Layout: this file holds the shared helpers and most tests; the export dialog's tests live in
 //! `app/export_dialog.rs`, start-up and the status bar in `app/status.rs`, the readable metric
-//! curves in `app/curves.rs`, "Fit garment" in `app/fit.rs`, runs in `app/runs.rs`, project
-//! files and the scene description in `app/projects.rs` (one test binary).
+//! curves in `app/curves.rs`, "Fit garment" in `app/fit.rs`, the joint map field in
+//! `app/joint_map.rs`, runs in `app/runs.rs`, project files and the scene description in
+//! `app/projects.rs` (one test binary).
 //! The memory-leak tests are in `tests/leak.rs`, a binary of their own so that no other test
 //! shares their process's resident memory.
 
@@ -17,6 +18,8 @@ mod curves;
 mod export_dialog;
 #[path = "app/fit.rs"]
 mod fit;
+#[path = "app/joint_map.rs"]
+mod joint_map;
 #[path = "app/projects.rs"]
 mod projects;
 #[path = "app/runs.rs"]

@@ -56,7 +56,44 @@ impl NeuralClothApp {
         match kind {
             LoadKind::Avatar => self.state.load_avatar(path),
             LoadKind::Garment => self.state.load_garment(path),
-            LoadKind::Motion => self.state.load_motion(path),
+            LoadKind::Motion => {
+                let map = self.state.typed.joint_map.trim().to_string();
+                let map = (!map.is_empty()).then(|| PathBuf::from(map));
+                self.state.load_motion_mapped(path, map.as_deref())
+            }
+        }
+    }
+
+    /// The "Joint map" row: a typed path to a joint map (TOML: `[joints] AvatarJoint =
+    /// "MotionJoint"`) that motions loaded next are retargeted with; checked when the field
+    /// is left, its error shown under it.
+    fn joint_map_row(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            let label = ui.label("Joint map");
+            let typed = &mut self.state.typed;
+            let response = ui
+                .add(
+                    egui::TextEdit::singleline(&mut typed.joint_map)
+                        .hint_text("optional .toml, for motions")
+                        .desired_width(150.0),
+                )
+                .labelled_by(label.id)
+                .on_hover_text(
+                    "[joints] AvatarJoint = \"MotionJoint\": overrides the automatic joint \
+                     mapping of the motions loaded next",
+                );
+            if response.lost_focus() {
+                let text = typed.joint_map.trim();
+                typed.joint_map_error = match text.is_empty() {
+                    true => None,
+                    false => crate::io::JointMap::load(std::path::Path::new(text))
+                        .err()
+                        .map(|e| e.to_string()),
+                };
+            }
+        });
+        if let Some(e) = &self.state.typed.joint_map_error {
+            ui.colored_label(egui::Color32::from_rgb(255, 100, 90), e);
         }
     }
 
@@ -114,11 +151,14 @@ impl NeuralClothApp {
                 self.load_row(ui, LoadKind::Garment);
                 self.fit_ui(ui);
                 self.load_row(ui, LoadKind::Motion);
+                self.joint_map_row(ui);
+                // (A joint map's error is shown under its field, not twice.)
+                let map_error = self.state.typed.joint_map_error.as_ref();
                 if let Some(m) = self
                     .state
                     .messages
                     .last()
-                    .filter(|m| m.level == Level::Error)
+                    .filter(|m| m.level == Level::Error && Some(&m.text) != map_error)
                 {
                     ui.colored_label(egui::Color32::from_rgb(255, 100, 90), &m.text);
                 }

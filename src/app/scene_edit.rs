@@ -7,22 +7,22 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::io::IoError;
 use crate::io::scene_loader::SceneLoader;
+use crate::io::{IoError, JointMap};
 use crate::scene::config::{AvatarSource, GarmentSource, MotionSource};
 use crate::scene::{Avatar, Motion, SceneConfig, Split};
 
 use super::panels::LoadKind;
 use super::state::{AppState, Level, SceneParts};
 
-/// A training motion source for the file at `path`.
-fn motion_file(path: PathBuf) -> MotionSource {
+/// A training motion source for the file at `path`, retargeted with `joint_map`.
+fn motion_file(path: PathBuf, joint_map: Option<PathBuf>) -> MotionSource {
     MotionSource::File {
         path,
         units: None,
         split: Split::Train,
         name: None,
-        joint_map: None,
+        joint_map,
     }
 }
 
@@ -86,7 +86,7 @@ impl AppState {
             path: file.clone(),
             units: None,
         };
-        config.motions = vec![motion_file(file)];
+        config.motions = vec![motion_file(file, None)];
         let origin = self.scene_origin();
         let loader = SceneLoader::new(&config, Path::new("."), &origin);
         let mut warnings = Vec::new();
@@ -177,8 +177,23 @@ impl AppState {
     /// Loads a motion file (BVH, or the animations of a glTF file), retargets it onto the
     /// avatar, adds it to the scene's training motions and shows it.
     pub fn load_motion(&mut self, path: &Path) -> bool {
+        self.load_motion_mapped(path, None)
+    }
+
+    /// [`Self::load_motion`] with the user's `joint_map` file (recorded in the scene
+    /// description). A map that does not read, or names joints the avatar or the motion
+    /// lacks, is refused with the error also kept in `typed.joint_map_error`.
+    pub fn load_motion_mapped(&mut self, path: &Path, joint_map: Option<&Path>) -> bool {
+        let joint_map = joint_map.map(absolute);
+        if let Some(map) = &joint_map
+            && let Err(e) = JointMap::load(map)
+        {
+            self.typed.joint_map_error = Some(e.to_string());
+            self.message(Level::Error, e.to_string());
+            return false;
+        }
         let mut config = self.scene.config.clone();
-        config.motions.push(motion_file(absolute(path)));
+        config.motions.push(motion_file(absolute(path), joint_map));
         let origin = self.scene_origin();
         let mut warnings = Vec::new();
         let loaded = SceneLoader::new(&config, Path::new("."), &origin).motions(
@@ -189,10 +204,14 @@ impl AppState {
         let motions: Vec<Motion> = match loaded {
             Ok(m) => m,
             Err(e) => {
+                if matches!(e, IoError::JointMap { .. }) {
+                    self.typed.joint_map_error = Some(e.to_string());
+                }
                 self.message(Level::Error, e.to_string());
                 return false;
             }
         };
+        self.typed.joint_map_error = None;
         for m in &motions {
             self.message(
                 Level::Info,

@@ -96,6 +96,10 @@ pub struct TypedPaths {
     pub garment: String,
     /// Motion file path.
     pub motion: String,
+    /// Joint map (TOML) applied when motions load; empty for none.
+    pub joint_map: String,
+    /// Why the typed joint map was refused (shown under its field); None when it is fine.
+    pub joint_map_error: Option<String>,
     /// Project file path.
     pub project: String,
     /// Run folder path.
