@@ -16,6 +16,7 @@ pub mod artifact;
 pub mod compiled;
 pub mod descriptors;
 pub mod gru;
+pub mod gru_unroll;
 pub mod inference;
 pub mod kernels;
 pub mod network;

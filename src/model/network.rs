@@ -75,7 +75,7 @@ impl RecurrentEncoder {
         let x = self.joint_mlp.forward(desc);
         let [_, _, j, c] = x.dims();
         let x = self.mlp.forward(x.reshape([b, t, j * c]));
-        self.gru.forward(x, state)
+        super::gru_unroll::unroll(&self.gru, x, state)
     }
 }
 
