@@ -11,6 +11,7 @@
 //! - [`handle`]: the thread loop, commands, events, divergence rollback.
 
 pub mod adam;
+pub mod alloc;
 pub mod checkpoint;
 pub mod compare;
 pub mod config;
@@ -211,6 +212,7 @@ pub fn device_for(backend: BackendKind, autodiff: bool) -> Device {
 /// when the newest is damaged, with a warning); a run with checkpoints of which none loads is
 /// an error, never a fresh start.
 pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainError> {
+    alloc::keep_freed_buffers();
     let TrainSetup {
         scene,
         scene_config,
