@@ -8,6 +8,8 @@
 pub mod memory;
 pub mod report;
 pub mod suite;
+pub mod training;
+pub mod training_report;
 
 use std::time::Instant;
 
@@ -24,7 +26,8 @@ pub use memory::{
     MemoryBandwidth, floor_buffer, measure_bandwidth, peak_rss_bytes, read_pass_secs,
     reset_peak_rss, rss_bytes, status_field,
 };
-pub use suite::{BenchOptions, BenchReport, TrainBench, bench_training, run_suite};
+pub use suite::{BenchOptions, BenchReport, TrainFloor, run_suite};
+pub use training::{StepFlops, TrainBench, TrainCase, bench_training};
 
 /// Frame rate of the benchmark motion and of the engines.
 const FPS: f32 = 30.0;

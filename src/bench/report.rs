@@ -202,34 +202,13 @@ pub fn write_markdown(r: &BenchReport) -> String {
             );
         }
     }
-    if !r.training.is_empty() {
-        let _ = writeln!(s, "\n### Training step (default scene, flex CPU backend)\n");
-        let _ = writeln!(
-            s,
-            "| batch | effects | physics | window s | fps | ms / step | steps / s | peak MB |"
-        );
-        let _ = writeln!(s, "|---:|---|---|---:|---:|---:|---:|---:|");
-        for t in &r.training {
-            let _ = writeln!(
-                s,
-                "| {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.0} |",
-                t.batch,
-                effects_label(&t.effects),
-                super::suite::physics_label(t.fused_physics),
-                t.window_secs,
-                t.fps,
-                t.ms_per_step,
-                1e3 / t.ms_per_step,
-                mb(t.peak_bytes)
-            );
-        }
-    }
+    s.push_str(&super::training_report::training_tables(r));
     if let Some(p) = &r.physics {
         let _ = writeln!(s, "\n### Physics terms at 10K DoF (forward + backward)\n");
         s.push_str(&p.to_markdown());
     }
     s.push_str(&gaps(r));
-    s.push_str(&training_gap(r));
+    s.push_str(&super::training_report::training_gap(r));
     let _ = writeln!(
         s,
         "\n{} cores; the suite took {:.0} s.",
@@ -239,40 +218,6 @@ pub fn write_markdown(r: &BenchReport) -> String {
 }
 
 /// The "gap to each goal" section.
-/// The training-step goals of issue 12, as ratios measured in this run: the default scene at
-/// batch 16 with all effects, fused physics against the burn reference path.
-fn training_gap(r: &BenchReport) -> String {
-    let all = crate::scene::Effects::default();
-    let find = |batch: usize, fused: bool| {
-        r.training
-            .iter()
-            .find(|t| t.batch == batch && t.effects == all && t.fused_physics == fused)
-    };
-    let (Some(fused), Some(reference)) = (find(16, true), find(16, false)) else {
-        return String::new();
-    };
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "- **Training step, batch 16, all effects, goal ≤ 100 ms:** {:.1} ms with the fused physics against {:.1} ms \
-         with the burn reference path in the same run: **{:.2}× faster** (peak {:.0} against \
-         {:.0} MB).",
-        fused.ms_per_step,
-        reference.ms_per_step,
-        reference.ms_per_step / fused.ms_per_step,
-        mb(fused.peak_bytes),
-        mb(reference.peak_bytes)
-    );
-    if let Some(b32) = find(32, true) {
-        let _ = writeln!(
-            s,
-            "- **Training step, batch 32, goal ≤ 180 ms:** {:.1} ms (fused).",
-            b32.ms_per_step
-        );
-    }
-    s
-}
-
 fn gaps(r: &BenchReport) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "\n### Gap to each goal\n");

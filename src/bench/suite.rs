@@ -4,44 +4,21 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::model::{ClothNetConfig, DescriptorConfig, EncoderKind, InferenceOptions, Precision};
+use crate::model::{DescriptorConfig, EncoderKind, InferenceOptions, Precision};
 use crate::physics::cost::{CostReport, measure_term_costs};
-use crate::scene::config::{Effects, SceneConfig};
-use crate::scene::procedural::build_builtin;
-use crate::train::handle::Session;
-use crate::train::{RunLocation, TrainConfig, TrainSetup, prepare};
+use crate::scene::config::Effects;
 
 use super::report::write_markdown;
+use super::training::{MatmulRate, TrainBench, TrainCase, bench_training, measure_matmul_rates};
 use super::{
     InferenceBench, MemoryBandwidth, PrecisionError, bench_avatar, bench_inference,
-    measure_bandwidth, measure_precision_error, peak_rss_bytes, random_weights_of, reset_peak_rss,
-    scene_with_dof,
+    measure_bandwidth, measure_precision_error, random_weights_of, scene_with_dof,
 };
 
 /// Garments from this many degrees of freedom on (a basis of ≥ 200 MB in f32) get a floor
 /// read after every timed frame; smaller ones would have their weights evicted from the cache
 /// by it.
 const PAIRED_FLOOR_MIN_DOF: usize = 100_000;
-
-/// Training step time at one batch size and set of effects.
-#[derive(Clone, Debug, Serialize)]
-pub struct TrainBench {
-    /// Windows per batch.
-    pub batch: usize,
-    /// Window length in seconds.
-    pub window_secs: f32,
-    /// Training frame rate.
-    pub fps: f32,
-    /// Effects of the scene (the default scene has all but pinning).
-    pub effects: Effects,
-    /// Physics as fused kernels (true, the default path) or as burn tensor code (the
-    /// reference path the kernels are checked against).
-    pub fused_physics: bool,
-    /// Median milliseconds per optimiser step.
-    pub ms_per_step: f64,
-    /// Peak resident memory of the process during the steps, bytes.
-    pub peak_bytes: usize,
-}
 
 /// Everything `neural-cloth bench` measures.
 #[derive(Clone, Debug, Serialize)]
@@ -58,6 +35,8 @@ pub struct BenchReport {
     pub bandwidth: Vec<MemoryBandwidth>,
     /// Training step times.
     pub training: Vec<TrainBench>,
+    /// burn's matrix-product rates on the shapes of the step, per batch size (the floor).
+    pub matmul: Vec<TrainFloor>,
     /// Per-term physics costs at 10K DoF.
     pub physics: Option<CostReport>,
     /// Seconds the suite took.
@@ -78,6 +57,36 @@ pub struct BenchOptions {
     pub train_steps: usize,
     /// Measure the physics terms.
     pub physics: bool,
+    /// Time the reference paths and the effect variants beside the default configuration
+    /// (false: the default configuration only, e.g. to profile it).
+    pub train_variants: bool,
+    /// Seconds of the warm start's drape before the timed steps (`None`: the training
+    /// default; `Some(0.0)` skips the simulator, whose drape does not change a step's work).
+    pub predrape_secs: Option<f32>,
+}
+
+/// burn's matrix-product rates at one batch size.
+#[derive(Clone, Debug, Serialize)]
+pub struct TrainFloor {
+    /// Windows per batch.
+    pub batch: usize,
+    /// The rate on each of the step's largest shapes.
+    pub rates: Vec<MatmulRate>,
+}
+
+impl BenchOptions {
+    /// The same training batches and steps, nothing else measured, only the default
+    /// configuration (`bench --train-only`, for profiling a step).
+    pub fn train_only(self) -> Self {
+        Self {
+            dofs: Vec::new(),
+            frames: 0,
+            physics: false,
+            train_variants: false,
+            predrape_secs: Some(0.0),
+            ..self
+        }
+    }
 }
 
 impl Default for BenchOptions {
@@ -88,66 +97,10 @@ impl Default for BenchOptions {
             train_batches: vec![16, 32],
             train_steps: 10,
             physics: true,
+            train_variants: true,
+            predrape_secs: None,
         }
     }
-}
-
-/// Median optimiser-step time of the default scene with `effects` at `batch`, with the fused
-/// physics kernels or (`fused_physics = false`) the burn reference path.
-pub fn bench_training(
-    batch: usize,
-    steps: usize,
-    effects: Effects,
-    fused_physics: bool,
-) -> Result<TrainBench, String> {
-    let mut config = SceneConfig::default_scene();
-    config.effects = effects;
-    let scene = build_builtin(&config).map_err(|e| e.to_string())?;
-    let dir =
-        std::env::temp_dir().join(format!("neural-cloth-bench-{}-{batch}", std::process::id()));
-    let train = TrainConfig {
-        batch_size: batch,
-        window_secs: 0.5,
-        fps: 30.0,
-        fused_physics,
-        ..Default::default()
-    };
-    let setup = TrainSetup {
-        scene,
-        scene_config: config,
-        train: train.clone(),
-        model: ClothNetConfig::default(),
-        descriptors: DescriptorConfig::default(),
-        fabric: None,
-        location: RunLocation::At(dir.clone()),
-    };
-    let (mut session, _) = prepare(setup).map_err(|e| e.to_string())?;
-    reset_peak_rss();
-    let mut times = Vec::new();
-    for k in 0..steps + 2 {
-        let start = Instant::now();
-        session.step().map_err(|e| e.to_string())?;
-        if k >= 2 {
-            times.push(start.elapsed().as_secs_f64() * 1e3);
-        }
-    }
-    let peak_bytes = peak_rss_bytes();
-    let _ = std::fs::remove_dir_all(&dir);
-    times.sort_by(f64::total_cmp);
-    Ok(TrainBench {
-        batch,
-        window_secs: train.window_secs,
-        fps: train.fps,
-        effects,
-        fused_physics,
-        ms_per_step: times.get(times.len() / 2).copied().unwrap_or(f64::NAN),
-        peak_bytes,
-    })
-}
-
-/// The name of a physics path in logs and tables.
-pub fn physics_label(fused: bool) -> &'static str {
-    if fused { "fused" } else { "burn (reference)" }
 }
 
 /// One inference configuration of the suite.
@@ -297,42 +250,7 @@ pub fn run_suite(options: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Be
             bandwidth.push(m);
         }
     }
-    let mut training = Vec::new();
-    for (k, &batch) in options.train_batches.iter().enumerate() {
-        let all = Effects::default();
-        let mut variants = vec![(all, true)];
-        if k == 0 {
-            // The reference path first, so the ratio fused / burn is measured in this run.
-            variants.insert(0, (all, false));
-            for off in [
-                Effects {
-                    collision: false,
-                    ..all
-                },
-                Effects {
-                    bending: false,
-                    ..all
-                },
-                Effects {
-                    dynamics: false,
-                    ..all
-                },
-            ] {
-                variants.push((off, true));
-            }
-        }
-        for (effects, fused) in variants {
-            let t = bench_training(batch, options.train_steps, effects, fused)?;
-            log(&format!(
-                "training step, batch {batch}, {}, {} physics: {:.1} ms, peak {:.0} MB",
-                super::report::effects_label(&t.effects),
-                physics_label(fused),
-                t.ms_per_step,
-                t.peak_bytes as f64 / 1e6
-            ));
-            training.push(t);
-        }
-    }
+    let (training, matmul) = run_training(options, log)?;
     let physics = if options.physics {
         let device = crate::train::device_for(crate::train::BackendKind::Cpu, false);
         let report = measure_term_costs(&device, 10_000, 16, 5).map_err(|e| e.to_string())?;
@@ -348,9 +266,79 @@ pub fn run_suite(options: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Be
         precision,
         bandwidth,
         training,
+        matmul,
         physics,
         total_secs: started.elapsed().as_secs_f64(),
     })
+}
+
+/// The cases timed at the `k`-th batch size: the default path; with variants, at the first
+/// size also the reference path (burn physics and Adam), burn's Adam alone and each effect
+/// off, at the others burn's Adam alone (the step before the fused Adam).
+fn training_cases(k: usize, batch: usize, variants: bool) -> Vec<TrainCase> {
+    let default = TrainCase::default_at(batch);
+    if !variants {
+        return vec![default];
+    }
+    let burn_adam = TrainCase {
+        fused_adam: false,
+        ..default
+    };
+    if k > 0 {
+        return vec![burn_adam, default];
+    }
+    let all = default.effects;
+    let mut cases = vec![TrainCase::reference_at(batch), burn_adam, default];
+    for effects in [
+        Effects {
+            collision: false,
+            ..all
+        },
+        Effects {
+            bending: false,
+            ..all
+        },
+        Effects {
+            dynamics: false,
+            ..all
+        },
+    ] {
+        cases.push(TrainCase { effects, ..default });
+    }
+    cases
+}
+
+/// The training benchmarks of `options` and the matrix-product rates of each batch size.
+fn run_training(
+    options: &BenchOptions,
+    log: &mut dyn FnMut(&str),
+) -> Result<(Vec<TrainBench>, Vec<TrainFloor>), String> {
+    let mut training = Vec::new();
+    let mut matmul = Vec::new();
+    for (k, &batch) in options.train_batches.iter().enumerate() {
+        for case in training_cases(k, batch, options.train_variants) {
+            let t = bench_training(case, options.train_steps, options.predrape_secs)?;
+            log(&format!(
+                "training step, batch {batch}, {}, {}: {:.1} ms, peak {:.0} MB",
+                super::report::effects_label(&t.case.effects),
+                case.path_label(),
+                t.ms_per_step,
+                t.peak_bytes as f64 / 1e6
+            ));
+            training.push(t);
+        }
+        if let Some(t) = training.last() {
+            let rates = measure_matmul_rates(batch, t.vertices, t.input_joints);
+            for r in &rates {
+                log(&format!(
+                    "matmul {} [{}, {}] × [{}, {}]: {:.2} ms, {:.1} GFLOP/s",
+                    r.what, r.m, r.k, r.k, r.n, r.ms, r.gflops
+                ));
+            }
+            matmul.push(TrainFloor { batch, rates });
+        }
+    }
+    Ok((training, matmul))
 }
 
 impl BenchReport {

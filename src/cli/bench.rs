@@ -20,17 +20,32 @@ pub struct BenchArgs {
     /// Also write the tables to this Markdown file (e.g. docs/BENCHMARKS.md).
     #[arg(long)]
     pub markdown: Option<PathBuf>,
+    /// Only the training steps (and their floor), at these batch sizes (e.g. `16,32`), nothing
+    /// else: for profiling a step.
+    #[arg(long, value_delimiter = ',', conflicts_with_all = ["quick", "physics_only"])]
+    pub train_only: Option<Vec<usize>>,
+    /// Steps timed per training configuration (default 10).
+    #[arg(long)]
+    pub steps: Option<usize>,
 }
 
 /// Runs `bench`.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
-    let options = if args.physics_only {
+    let mut options = if let Some(batches) = &args.train_only {
+        BenchOptions {
+            train_batches: batches.clone(),
+            ..BenchOptions::default()
+        }
+        .train_only()
+    } else if args.physics_only {
         BenchOptions {
             dofs: Vec::new(),
             frames: 0,
             train_batches: Vec::new(),
             train_steps: 0,
             physics: true,
+            train_variants: false,
+            predrape_secs: None,
         }
     } else if args.quick {
         BenchOptions {
@@ -39,10 +54,15 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
             train_batches: vec![4],
             train_steps: 2,
             physics: false,
+            train_variants: true,
+            predrape_secs: None,
         }
     } else {
         BenchOptions::default()
     };
+    if let Some(steps) = args.steps {
+        options.train_steps = steps.max(1);
+    }
     let report =
         run_suite(&options, &mut |line| eprintln!("{line}")).map_err(anyhow::Error::msg)?;
     let markdown = report.to_markdown();

@@ -1,0 +1,339 @@
+//! The training-step benchmark and its floor (issue 12).
+//!
+//! * [`bench_training`]: median step time of the default scene at one batch size, with the
+//!   fused or the burn reference physics and the fused or burn's Adam, so that every path is
+//!   timed in the same run as the others.
+//! * [`step_flops`]: the floating-point work of a step, counted from the network's own layer
+//!   shapes: the static encoder on the predicted frames, the dynamic encoder and the GRU unroll
+//!   on every frame of the window, the decoder, the basis products and the skinning, each
+//!   forward and (about twice that) backward. The physics is not counted: it is a few MFLOP.
+//! * [`measure_matmul_rates`]: the machine's single-precision matrix-product rate with burn's
+//!   own kernels (the flex backend on all threads) on the shapes of the step, measured in the
+//!   same run; the floor of a step is its FLOPs over the best of these rates.
+
+use std::time::Instant;
+
+use burn::nn::Linear;
+use burn::tensor::{Device, Distribution, Tensor};
+use serde::Serialize;
+
+use crate::model::{ClothNet, ClothNetConfig, DescriptorConfig};
+use crate::scene::config::{Effects, SceneConfig};
+use crate::scene::procedural::build_builtin;
+use crate::train::handle::Session;
+use crate::train::{RunLocation, TrainConfig, TrainSetup, prepare};
+
+use super::{peak_rss_bytes, reset_peak_rss};
+
+/// Frames of each window whose garment is predicted (`x_{t-2}, x_{t-1}, x_t`).
+const PREDICTED_FRAMES: usize = 3;
+/// Steps run before timing starts (the first ones allocate the optimiser state).
+const WARM_UP_STEPS: usize = 2;
+/// Seconds each matrix-product shape is timed at least.
+const MATMUL_SECS: f64 = 0.3;
+
+/// What one training benchmark runs.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct TrainCase {
+    /// Windows per batch.
+    pub batch: usize,
+    /// Effects of the scene (the default scene has all but pinning).
+    pub effects: Effects,
+    /// Physics as fused kernels (the default) or as burn tensor code (the reference path).
+    pub fused_physics: bool,
+    /// The fused Adam (the default) or burn's.
+    pub fused_adam: bool,
+}
+
+impl TrainCase {
+    /// The default path (fused physics and Adam) at `batch` with every effect of the scene.
+    pub fn default_at(batch: usize) -> Self {
+        Self {
+            batch,
+            effects: Effects::default(),
+            fused_physics: true,
+            fused_adam: true,
+        }
+    }
+
+    /// The path before issue 12: burn's physics and burn's Adam.
+    pub fn reference_at(batch: usize) -> Self {
+        Self {
+            fused_physics: false,
+            fused_adam: false,
+            ..Self::default_at(batch)
+        }
+    }
+
+    /// Name of the path in logs and tables.
+    pub fn path_label(&self) -> &'static str {
+        match (self.fused_physics, self.fused_adam) {
+            (true, true) => "fused physics, fused Adam",
+            (true, false) => "fused physics, burn Adam",
+            (false, true) => "burn physics, fused Adam",
+            (false, false) => "burn (reference)",
+        }
+    }
+}
+
+/// Step time of one [`TrainCase`].
+#[derive(Clone, Debug, Serialize)]
+pub struct TrainBench {
+    /// What ran.
+    pub case: TrainCase,
+    /// Window length in seconds.
+    pub window_secs: f32,
+    /// Training frame rate.
+    pub fps: f32,
+    /// Median milliseconds per optimiser step.
+    pub ms_per_step: f64,
+    /// Peak resident memory of the process during the steps, bytes.
+    pub peak_bytes: usize,
+    /// Floating-point work of one step.
+    pub flops: StepFlops,
+    /// Garment vertices of the scene.
+    pub vertices: usize,
+    /// Input joints of the network.
+    pub input_joints: usize,
+}
+
+/// Floating-point operations of one training step, by part (forward and backward together;
+/// backward counted as twice the forward: the gradients of the inputs and of the weights).
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct StepFlops {
+    /// Static encoder and the dynamic encoder's layers before the GRU.
+    pub encoders: f64,
+    /// The GRU unroll over the window.
+    pub gru: f64,
+    /// The decoder's hidden layers.
+    pub decoder: f64,
+    /// The basis and dynamic-basis products.
+    pub basis: f64,
+    /// Adding the template and skinning the predicted frames.
+    pub skinning: f64,
+}
+
+impl StepFlops {
+    /// All parts.
+    pub fn total(&self) -> f64 {
+        self.encoders + self.gru + self.decoder + self.basis + self.skinning
+    }
+}
+
+/// The rate of burn's matrix product on one shape.
+#[derive(Clone, Debug, Serialize)]
+pub struct MatmulRate {
+    /// What the shape is in the step.
+    pub what: String,
+    /// `[m, k] × [k, n]`.
+    pub m: usize,
+    /// Inner dimension.
+    pub k: usize,
+    /// Columns of the result.
+    pub n: usize,
+    /// Median milliseconds per product.
+    pub ms: f64,
+    /// Billions of floating-point operations per second (`2mkn / time`).
+    pub gflops: f64,
+}
+
+/// Forward + backward FLOPs of a linear layer applied to `rows` rows.
+fn linear_flops(layer: &Linear, rows: usize) -> f64 {
+    let [d_in, d_out] = layer.weight.dims();
+    3.0 * 2.0 * (rows * d_in * d_out) as f64
+}
+
+fn layers_flops(layers: &[Linear], rows: usize) -> f64 {
+    layers.iter().map(|l| linear_flops(l, rows)).sum()
+}
+
+/// The work of one step of `model` on `batch` windows of `frames` frames, the last
+/// `predicted` of which are decoded and skinned.
+pub fn step_flops(model: &ClothNet, batch: usize, frames: usize, predicted: usize) -> StepFlops {
+    let (window_rows, predicted_rows) = (batch * frames, batch * predicted);
+    let mut f = StepFlops::default();
+    if let Some(s) = &model.static_encoder {
+        f.encoders += layers_flops(&s.layers, predicted_rows);
+    }
+    for enc in [&model.dynamic_encoder, &model.entangled_encoder]
+        .into_iter()
+        .flatten()
+    {
+        f.encoders += layers_flops(&enc.joint_mlp.layers, window_rows * model.input_joints);
+        f.encoders += layers_flops(&enc.mlp.layers, window_rows);
+        for gate in [&enc.gru.update_gate, &enc.gru.reset_gate, &enc.gru.new_gate] {
+            f.gru += linear_flops(&gate.input_transform, window_rows);
+            f.gru += linear_flops(&gate.hidden_transform, window_rows);
+        }
+    }
+    f.decoder = layers_flops(&model.decoder.mlp.layers, predicted_rows);
+    f.basis = linear_flops(&model.decoder.basis, predicted_rows);
+    if let Some(b) = &model.decoder.dynamic_basis {
+        f.basis += linear_flops(b, predicted_rows);
+    }
+    // Template add (3), rotation (9 products, 6 sums) and translation (3) per vertex.
+    f.skinning = 3.0 * 21.0 * (predicted_rows * model.vertices) as f64;
+    f
+}
+
+/// Median step time of `case` on the default scene (0.5 s window, 30 fps) over `steps` steps.
+/// `predrape_secs` is the warm start's drape (the default 1.5 s in the full suite; 0 skips the
+/// simulator when only the step matters, e.g. to profile it: the drape sets the basis bias,
+/// not the work of a step).
+pub fn bench_training(
+    case: TrainCase,
+    steps: usize,
+    predrape_secs: Option<f32>,
+) -> Result<TrainBench, String> {
+    let mut config = SceneConfig::default_scene();
+    config.effects = case.effects;
+    let scene = build_builtin(&config).map_err(|e| e.to_string())?;
+    let dir = std::env::temp_dir().join(format!(
+        "neural-cloth-bench-{}-{}",
+        std::process::id(),
+        case.batch
+    ));
+    let defaults = TrainConfig::default();
+    let train = TrainConfig {
+        batch_size: case.batch,
+        window_secs: 0.5,
+        fps: 30.0,
+        fused_physics: case.fused_physics,
+        fused_adam: case.fused_adam,
+        predrape_secs: predrape_secs.unwrap_or(defaults.predrape_secs),
+        ..defaults
+    };
+    let setup = TrainSetup {
+        scene,
+        scene_config: config,
+        train: train.clone(),
+        model: ClothNetConfig::default(),
+        descriptors: DescriptorConfig::default(),
+        fabric: None,
+        location: RunLocation::At(dir.clone()),
+    };
+    let (mut session, _) = prepare(setup).map_err(|e| e.to_string())?;
+    let (vertices, input_joints) = (session.model().vertices, session.model().input_joints);
+    let flops = step_flops(
+        session.model(),
+        case.batch,
+        train.window_frames(),
+        PREDICTED_FRAMES,
+    );
+    reset_peak_rss();
+    let mut times = Vec::new();
+    for k in 0..steps + WARM_UP_STEPS {
+        let start = Instant::now();
+        session.step().map_err(|e| e.to_string())?;
+        if k >= WARM_UP_STEPS {
+            times.push(start.elapsed().as_secs_f64());
+        }
+    }
+    let peak_bytes = peak_rss_bytes();
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(TrainBench {
+        case,
+        window_secs: train.window_secs,
+        fps: train.fps,
+        ms_per_step: super::median_ms(&mut times),
+        peak_bytes,
+        flops,
+        vertices,
+        input_joints,
+    })
+}
+
+/// Median milliseconds of burn's `[m, k] × [k, n]` product on `device` ([`super::median_ms`]
+/// takes seconds).
+fn time_matmul(device: &Device, m: usize, k: usize, n: usize) -> f64 {
+    let a = Tensor::<2>::random([m, k], Distribution::Default, device);
+    let b = Tensor::<2>::random([k, n], Distribution::Default, device);
+    let mut times = Vec::new();
+    let started = Instant::now();
+    while times.len() < 3 || (started.elapsed().as_secs_f64() < MATMUL_SECS && times.len() < 500) {
+        let t = Instant::now();
+        let c = a.clone().matmul(b.clone());
+        // Reading one value waits for the product (and keeps it from being optimised away).
+        let _ = c.slice([0..1, 0..1]).into_scalar::<f32>();
+        times.push(t.elapsed().as_secs_f64());
+    }
+    super::median_ms(&mut times)
+}
+
+/// burn's matrix-product rate on the CPU backend (all threads) for the largest shapes of a
+/// default step at `batch`: the basis product and its weight gradient, the layers on every
+/// frame, the GRU's step; `vertices` garment vertices, `joints` input joints.
+pub fn measure_matmul_rates(batch: usize, vertices: usize, joints: usize) -> Vec<MatmulRate> {
+    let device = crate::train::device_for(crate::train::BackendKind::Cpu, false);
+    let frames = TrainConfig::default().window_frames();
+    let (rows, window_rows) = (batch * PREDICTED_FRAMES, batch * frames);
+    let latent = ClothNetConfig::default().latent;
+    let dof = 3 * vertices;
+    let shapes = [
+        ("basis product", rows, latent, dof),
+        ("basis weight gradient", latent, rows, dof),
+        (
+            "joint features → 512, every frame",
+            window_rows,
+            32 * joints,
+            512,
+        ),
+        ("512 → 512, every frame", window_rows, latent, latent),
+        ("GRU step, one gate", batch, latent, latent),
+    ];
+    shapes
+        .iter()
+        .map(|&(what, m, k, n)| {
+            let ms = time_matmul(&device, m, k, n);
+            MatmulRate {
+                what: what.to_string(),
+                m,
+                k,
+                n,
+                ms,
+                gflops: 2.0 * (m * k * n) as f64 / (ms * 1e6),
+            }
+        })
+        .collect()
+}
+
+/// The best rate of `rates` in FLOP per second (the floor divides by it).
+pub fn best_rate(rates: &[MatmulRate]) -> Option<f64> {
+    rates
+        .iter()
+        .map(|r| r.gflops * 1e9)
+        .filter(|r| r.is_finite() && *r > 0.0)
+        .max_by(f64::total_cmp)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_step_work_follows_the_layer_shapes() {
+        let device = Device::flex();
+        let config = ClothNetConfig::default();
+        let model = config.init(4, 10, &device).unwrap();
+        let (b, t, k) = (2, 5, 3);
+        let f = step_flops(&model, b, t, k);
+        // Basis and dynamic basis: 3 × 2 × (B·K) × 512 × 30 each.
+        assert_eq!(f.basis, 2.0 * 3.0 * 2.0 * (b * k * 512 * 30) as f64);
+        // Three gates, input and hidden transforms 512 → 512, on every frame.
+        assert_eq!(f.gru, 6.0 * 3.0 * 2.0 * (b * t * 512 * 512) as f64);
+        assert_eq!(f.skinning, 3.0 * 21.0 * (b * k * 10) as f64);
+        assert!(f.encoders > 0.0 && f.decoder > 0.0);
+        assert_eq!(
+            f.total(),
+            f.encoders + f.gru + f.decoder + f.basis + f.skinning
+        );
+    }
+
+    #[test]
+    fn the_reference_case_is_the_old_path() {
+        let r = TrainCase::reference_at(16);
+        assert!(!r.fused_physics && !r.fused_adam);
+        assert_eq!(r.path_label(), "burn (reference)");
+        assert!(TrainCase::default_at(32).fused_adam);
+    }
+}
