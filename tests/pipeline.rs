@@ -738,8 +738,11 @@ fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
         let (mut session, _) = prepare(TrainSetup {
             scene,
             scene_config,
+            // No warm start: the simulator's settle is the one part of preparing a run whose
+            // result depends on thread timing in a full test run.
             train: TrainConfig {
                 loss_frames,
+                predrape_secs: 0.0,
                 ..quick_config()
             },
             model: small_model(),
@@ -762,10 +765,16 @@ fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
     let (before_one, one) = losses(1);
     let (before_three, three) = losses(3);
     // Validation reads the last frame only, so the untrained model scores the same.
-    assert_eq!(before_one, before_three);
-    assert_ne!(
-        one[0], three[0],
-        "three loss frames gave the first step's loss of one"
+    let relative = |a: f64, b: f64| (a - b).abs() / a.abs().max(b.abs()).max(1e-12);
+    assert!(
+        relative(before_one, before_three) < 1e-6,
+        "{before_one} against {before_three}"
+    );
+    assert!(
+        relative(one[0], three[0]) > 1e-4,
+        "three loss frames gave the first step's loss of one: {} against {}",
+        three[0],
+        one[0]
     );
     // A window too short for its loss frames is refused.
     let too_many = TrainConfig {
