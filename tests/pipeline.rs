@@ -451,6 +451,46 @@ fn cli(args: &[&str], cwd: &Path) -> (bool, String) {
     )
 }
 
+/// Issue 15: checkpoint retention from the command line (it was only in the app's Runs panel).
+#[test]
+fn cli_train_keeps_the_checkpoints_it_is_told_to() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("tiny.toml"), TINY).unwrap();
+    let args = |keep: &'static str| {
+        [
+            "train",
+            "--scene",
+            "tiny.toml",
+            "--steps",
+            "4",
+            "--batch",
+            "2",
+            "--predrape-secs",
+            "0",
+            "--checkpoint-every",
+            "1",
+            "--out",
+            "run",
+            "--keep-checkpoints",
+            keep,
+            "--no-keep-best",
+        ]
+    };
+    let (ok, log) = cli(&args("0"), dir.path());
+    assert!(!ok && log.contains("--keep-checkpoints 0 is outside"), "{log}");
+    let (ok, log) = cli(&args("1"), dir.path());
+    assert!(ok, "{log}");
+    assert!(log.contains("keeping the newest 1 checkpoint(s)"), "{log}");
+    let kept: Vec<_> = std::fs::read_dir(dir.path().join("run/checkpoints"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|name| name.starts_with("step-"))
+        .collect();
+    assert_eq!(kept, ["step-00000004"], "{log}");
+    let policy = std::fs::read_to_string(dir.path().join("run/retention.json")).unwrap();
+    assert!(policy.contains("\"keep_best\": false"), "{policy}");
+}
+
 #[test]
 fn cli_trains_bakes_and_refuses_a_foreign_garment() {
     let dir = tempfile::tempdir().unwrap();

@@ -10,6 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use neural_cloth::io::scene_loader::{folder_split, load_scene, load_scene_file};
 use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
 use neural_cloth::scene::config::{AvatarSource, GarmentSource, MotionSource, SceneConfig, Split};
+use neural_cloth::train::retention::{MAX_KEEP_NEWEST, Retention};
 use neural_cloth::train::{
     BackendKind, RunDir, RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer, resume,
 };
@@ -56,6 +57,13 @@ pub struct TrainArgs {
     /// Write a checkpoint every this many steps (default 200).
     #[arg(long)]
     pub checkpoint_every: Option<u64>,
+    /// Keep this many of the newest checkpoints, 1..=1000 (default 3, or what the resumed run
+    /// recorded); written to RUN/retention.json, which the app's Runs panel edits too
+    #[arg(long)]
+    pub keep_checkpoints: Option<usize>,
+    /// Do not also keep the checkpoint with the lowest validation loss
+    #[arg(long)]
+    pub no_keep_best: bool,
     /// Validate every this many steps (default 50).
     #[arg(long)]
     pub validate_every: Option<u64>,
@@ -420,6 +428,12 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         train.max_minutes = Some(10.0);
         eprintln!("no --minutes or --steps given: training for 10 minutes");
     }
+    let (keep_checkpoints, no_keep_best) = (args.keep_checkpoints, args.no_keep_best);
+    if let Some(n) = keep_checkpoints
+        && !(1..=MAX_KEEP_NEWEST).contains(&n)
+    {
+        bail!("--keep-checkpoints {n} is outside 1..={MAX_KEEP_NEWEST}");
+    }
     let location = match (args.resume, args.out) {
         (Some(dir), _) => RunLocation::Resume(dir),
         (None, Some(dir)) => RunLocation::At(dir),
@@ -460,10 +474,15 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
             continue;
         };
         match event {
-            TrainEvent::Started { run_dir, step } => say(format!(
-                "run folder: {} (from step {step})",
-                run_dir.display()
-            )),
+            TrainEvent::Started { run_dir, step } => {
+                say(format!(
+                    "run folder: {} (from step {step})",
+                    run_dir.display()
+                ));
+                if let Some(line) = apply_retention(&run_dir, keep_checkpoints, no_keep_best) {
+                    say(line);
+                }
+            }
             TrainEvent::Step(r) => {
                 if r.wall_secs > last.1 + 1.0 {
                     steps_per_sec = (r.step - last.0) as f64 / (r.wall_secs - last.1);
@@ -532,6 +551,36 @@ pub struct EvalArgs {
 }
 
 /// Runs `eval`: prints the §4.2 metrics per motion and their mean, as JSON.
+/// Writes the checkpoint retention the flags ask for into the run folder `run_dir` (the
+/// trainer reads it at every prune; flags not given keep what the run has). A line to print:
+/// the policy set, or why it could not be.
+fn apply_retention(run_dir: &Path, keep: Option<usize>, no_keep_best: bool) -> Option<String> {
+    if keep.is_none() && !no_keep_best {
+        return None;
+    }
+    let result = RunDir::open(run_dir).and_then(|run| {
+        let current = run.retention()?;
+        let wanted = Retention {
+            keep_newest: keep.unwrap_or(current.keep_newest),
+            keep_best: current.keep_best && !no_keep_best,
+        };
+        run.set_retention(wanted)?;
+        Ok(wanted)
+    });
+    Some(match result {
+        Ok(r) => format!(
+            "keeping the newest {} checkpoint(s){}",
+            r.keep_newest,
+            if r.keep_best {
+                " and the best by validation"
+            } else {
+                ""
+            }
+        ),
+        Err(e) => format!("warning: checkpoint retention not set: {e}"),
+    })
+}
+
 pub fn eval(args: EvalArgs) -> anyhow::Result<()> {
     anyhow::ensure!(
         (0.0..=2.0).contains(&args.w),
