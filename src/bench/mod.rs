@@ -141,7 +141,30 @@ pub fn bench_inference(
     frames: usize,
     paired_floor: bool,
 ) -> Result<InferenceBench, String> {
-    let walk = bench_motion()?;
+    let artifact = ModelArtifact::new(weights, DescriptorConfig::default(), FPS);
+    bench_artifact(
+        avatar,
+        garment,
+        &bench_motion()?,
+        artifact,
+        options,
+        frames,
+        paired_floor,
+    )
+}
+
+/// [`bench_inference`] of a model with its own descriptor settings and rate (e.g. trained
+/// weights) on the poses of `walk`.
+pub fn bench_artifact(
+    avatar: &Avatar,
+    garment: &Garment,
+    walk: &Motion,
+    artifact: ModelArtifact,
+    options: InferenceOptions,
+    frames: usize,
+    paired_floor: bool,
+) -> Result<InferenceBench, String> {
+    let weights = &artifact.weights;
     let weight_bytes = weights.parameter_count() * 4;
     let basis_f32_bytes = weights.basis.weight.len() * 4;
     let model = weights.kind;
@@ -163,7 +186,7 @@ pub fn bench_inference(
     reset_peak_rss();
     let before = rss_bytes();
     let build_start = Instant::now();
-    let mut engine = ModelArtifact::new(weights, DescriptorConfig::default(), FPS)
+    let mut engine = artifact
         .into_engine(avatar, garment, options)
         .map_err(|e| e.to_string())?;
     let build_ms = build_start.elapsed().as_secs_f64() * 1e3;

@@ -202,6 +202,7 @@ pub fn write_markdown(r: &BenchReport) -> String {
             );
         }
     }
+    s.push_str(&super::training_report::trained_table(r));
     s.push_str(&super::training_report::training_tables(r));
     if let Some(p) = &r.physics {
         let _ = writeln!(s, "\n### Physics terms at 10K DoF (forward + backward)\n");

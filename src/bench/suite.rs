@@ -1,5 +1,6 @@
 //! The full benchmark suite and its Markdown report.
 
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde::Serialize;
@@ -37,6 +38,9 @@ pub struct BenchReport {
     pub training: Vec<TrainBench>,
     /// burn's matrix-product rates on the shapes of the step, per batch size (the floor).
     pub matmul: Vec<TrainFloor>,
+    /// Inference on trained weights (`bench --weights RUN`): the run and its step, and the
+    /// engine on the run's garment, f32 and f16, one thread.
+    pub trained: Option<(String, Vec<InferenceBench>)>,
     /// Per-term physics costs at 10K DoF.
     pub physics: Option<CostReport>,
     /// Seconds the suite took.
@@ -57,12 +61,15 @@ pub struct BenchOptions {
     pub train_steps: usize,
     /// Measure the physics terms.
     pub physics: bool,
-    /// Time the reference paths and the effect variants beside the default configuration
-    /// (false: the default configuration only, e.g. to profile it).
+    /// Time the burn reference path and the effect variants beside the default configuration
+    /// and burn's Adam (false: those two only, e.g. to profile them).
     pub train_variants: bool,
     /// Seconds of the warm start's drape before the timed steps (`None`: the training
     /// default; `Some(0.0)` skips the simulator, whose drape does not change a step's work).
     pub predrape_secs: Option<f32>,
+    /// A trained run whose newest checkpoint is timed too (the share of basis rows read
+    /// depends on the weights: random ones read about half).
+    pub trained: Option<PathBuf>,
 }
 
 /// burn's matrix-product rates at one batch size.
@@ -76,7 +83,7 @@ pub struct TrainFloor {
 
 impl BenchOptions {
     /// The same training batches and steps, nothing else measured, only the default
-    /// configuration (`bench --train-only`, for profiling a step).
+    /// configuration and burn's Adam (`bench --train-only`, for profiling a step).
     pub fn train_only(self) -> Self {
         Self {
             dofs: Vec::new(),
@@ -84,6 +91,7 @@ impl BenchOptions {
             physics: false,
             train_variants: false,
             predrape_secs: Some(0.0),
+            trained: None,
             ..self
         }
     }
@@ -99,6 +107,7 @@ impl Default for BenchOptions {
             physics: true,
             train_variants: true,
             predrape_secs: None,
+            trained: None,
         }
     }
 }
@@ -250,6 +259,10 @@ pub fn run_suite(options: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Be
             bandwidth.push(m);
         }
     }
+    let trained = match &options.trained {
+        Some(run) => Some(bench_trained(run, options.frames, log)?),
+        None => None,
+    };
     let (training, matmul) = run_training(options, log)?;
     let physics = if options.physics {
         let device = crate::train::device_for(crate::train::BackendKind::Cpu, false);
@@ -267,24 +280,62 @@ pub fn run_suite(options: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Be
         bandwidth,
         training,
         matmul,
+        trained,
         physics,
         total_secs: started.elapsed().as_secs_f64(),
     })
 }
 
-/// The cases timed at the `k`-th batch size: the default path; with variants, at the first
-/// size also the reference path (burn physics and Adam), burn's Adam alone and each effect
-/// off, at the others burn's Adam alone (the step before the fused Adam).
+/// The inference engine on the newest checkpoint of `run` (its own garment, avatar and first
+/// motion), exact f32 and the default f16, one thread.
+fn bench_trained(
+    run: &Path,
+    frames: usize,
+    log: &mut dyn FnMut(&str),
+) -> Result<(String, Vec<InferenceBench>), String> {
+    let trained = crate::train::load_trained(run).map_err(|e| e.to_string())?;
+    let Some((motion, _)) = trained.scene.motions.first() else {
+        return Err(format!("{}: the run's scene has no motion", run.display()));
+    };
+    let mut out = Vec::new();
+    for precision in [Precision::F32, Precision::F16] {
+        let engine_options = InferenceOptions {
+            threads: 1,
+            basis_precision: precision,
+            layer_precision: precision,
+            ..InferenceOptions::default()
+        };
+        let b = super::bench_artifact(
+            &trained.scene.avatar,
+            &trained.scene.garment,
+            motion,
+            trained.artifact.clone(),
+            engine_options,
+            frames,
+            false,
+        )?;
+        log(&format!(
+            "inference on trained weights, {} DoF, {}: {:.3} ms/frame, {:.0}% of the basis rows read",
+            b.dof,
+            b.precision,
+            b.ms_per_frame,
+            100.0 * b.basis_rows_read
+        ));
+        out.push(b);
+    }
+    Ok((format!("{} (step {})", run.display(), trained.step), out))
+}
+
+/// The cases timed at the `k`-th batch size: burn's Adam with the fused physics (the step
+/// before the fused Adam) and the default path; with variants, at the first size also the
+/// reference path (burn physics and Adam) and each effect off.
 fn training_cases(k: usize, batch: usize, variants: bool) -> Vec<TrainCase> {
     let default = TrainCase::default_at(batch);
-    if !variants {
-        return vec![default];
-    }
     let burn_adam = TrainCase {
         fused_adam: false,
         ..default
     };
-    if k > 0 {
+    if !variants || k > 0 {
         return vec![burn_adam, default];
     }
     let all = default.effects;

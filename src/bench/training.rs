@@ -213,6 +213,8 @@ pub fn bench_training(
         location: RunLocation::At(dir.clone()),
     };
     let (mut session, _) = prepare(setup).map_err(|e| e.to_string())?;
+    // Buffers kept from earlier runs of this process (train::alloc) would count in this peak.
+    crate::train::alloc::release_freed_buffers();
     let (vertices, input_joints) = (session.model().vertices, session.model().input_joints);
     let flops = step_flops(
         session.model(),

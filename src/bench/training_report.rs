@@ -107,6 +107,42 @@ pub fn training_tables(r: &BenchReport) -> String {
     s
 }
 
+/// The engine on trained weights beside random weights of the same size and precision.
+pub fn trained_table(r: &BenchReport) -> String {
+    let mut s = String::new();
+    let Some((run, benches)) = &r.trained else {
+        return s;
+    };
+    let _ = writeln!(s, "\n### Inference on trained weights\n");
+    let _ = writeln!(
+        s,
+        "Weights of {run}, on the run's own garment and first motion, 1 thread, beside the random \
+         weights of the first table at the same size (when measured).\n"
+    );
+    let _ = writeln!(
+        s,
+        "| DoF | weights | ms / frame | fps | basis rows read | random weights: ms / frame | random: rows read |"
+    );
+    let _ = writeln!(s, "|---:|---|---:|---:|---:|---:|---:|");
+    for b in benches {
+        let random = r.inference.iter().find(|x| {
+            x.dof == b.dof && x.precision == b.precision && x.threads == 1 && x.model == b.model
+        });
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.3} | {:.0} | {:.0}% | {} | {} |",
+            b.dof,
+            b.precision,
+            b.ms_per_frame,
+            b.fps,
+            100.0 * b.basis_rows_read,
+            random.map_or("-".into(), |x| format!("{:.3}", x.ms_per_frame)),
+            random.map_or("-".into(), |x| format!("{:.0}%", 100.0 * x.basis_rows_read)),
+        );
+    }
+    s
+}
+
 /// One goal line: the default path at `batch` against the other paths of the same run.
 fn goal_line(r: &BenchReport, batch: usize, goal_ms: f64) -> Option<String> {
     let new = find(r, TrainCase::default_at(batch))?;

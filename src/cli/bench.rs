@@ -20,13 +20,18 @@ pub struct BenchArgs {
     /// Also write the tables to this Markdown file (e.g. docs/BENCHMARKS.md).
     #[arg(long)]
     pub markdown: Option<PathBuf>,
-    /// Only the training steps (and their floor), at these batch sizes (e.g. `16,32`), nothing
-    /// else: for profiling a step.
+    /// Only the training steps (the default path and burn's Adam, and their floor, without the
+    /// warm start's drape) at these batch sizes (e.g. `16,32`), nothing else: for profiling.
     #[arg(long, value_delimiter = ',', conflicts_with_all = ["quick", "physics_only"])]
     pub train_only: Option<Vec<usize>>,
     /// Steps timed per training configuration (default 10).
     #[arg(long)]
     pub steps: Option<usize>,
+    /// Also time the inference engine on the newest checkpoint of this trained run (on the
+    /// run's own garment and motion): trained weights skip another share of basis rows than
+    /// random ones.
+    #[arg(long, value_name = "RUN")]
+    pub weights: Option<PathBuf>,
 }
 
 /// Runs `bench`.
@@ -46,6 +51,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
             physics: true,
             train_variants: false,
             predrape_secs: None,
+            trained: None,
         }
     } else if args.quick {
         BenchOptions {
@@ -56,6 +62,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
             physics: false,
             train_variants: true,
             predrape_secs: None,
+            trained: None,
         }
     } else {
         BenchOptions::default()
@@ -63,6 +70,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     if let Some(steps) = args.steps {
         options.train_steps = steps.max(1);
     }
+    options.trained = args.weights.clone();
     let report =
         run_suite(&options, &mut |line| eprintln!("{line}")).map_err(anyhow::Error::msg)?;
     let markdown = report.to_markdown();

@@ -186,3 +186,19 @@ fn garbage_is_not_an_optimiser_state() {
         .to_string();
     assert!(e.starts_with("optimiser state"), "{e}");
 }
+
+#[test]
+fn the_config_picks_the_fused_adam_on_the_cpu_only() {
+    let cpu = TrainConfig::default();
+    assert!(TrainOptimiser::for_config(&cpu).is_fused());
+    let wgpu = TrainConfig {
+        backend: BackendKind::Wgpu,
+        ..TrainConfig::default()
+    };
+    assert!(!TrainOptimiser::for_config(&wgpu).is_fused());
+    let off = TrainConfig {
+        fused_adam: false,
+        ..TrainConfig::default()
+    };
+    assert!(!TrainOptimiser::for_config(&off).is_fused());
+}

@@ -45,6 +45,17 @@ fn apply() -> bool {
     false
 }
 
+/// Returns the freed buffers kept by [`keep_freed_buffers`] to the system (`malloc_trim`),
+/// e.g. before measuring the peak memory of the next run in the same process, or when
+/// training ends.
+pub fn release_freed_buffers() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: `malloc_trim` only returns free heap memory to the system; thread-safe.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #[test]
