@@ -7,7 +7,8 @@
 //! glTF rigs and joint maps, on fixtures written by our own code (`io/rigs.rs`); by skeleton
 //! structure where the joint names say nothing (`io/structure.rs`). Z-up BVH, GLB and OBJ files
 //! turned Y up (`io/up_axis.rs`). Garment
-//! fitting on built-in and MakeHuman garments, and the `fit` command (`io/fit.rs`). Characters
+//! fitting on built-in and MakeHuman garments, and the `fit` command (`io/fit.rs`); garments
+//! made for another arm pose re-posed (`io/sleeves.rs`). Characters
 //! built partly of rigid meshes parented to bones (`io/rigid_parts.rs`).
 //!
 //! Layout: this file holds the shared helpers; the tests live in `io/*.rs` (one test binary).
@@ -30,6 +31,8 @@ mod raw_gltf;
 mod rigid_parts;
 #[path = "io/rigs.rs"]
 mod rigs;
+#[path = "io/sleeves.rs"]
+mod sleeves;
 #[path = "io/structure.rs"]
 mod structure;
 #[path = "io/up_axis.rs"]

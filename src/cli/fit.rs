@@ -46,6 +46,10 @@ pub struct FitArgs {
     /// Do not relax the aligned garment with the simulator.
     #[arg(long)]
     pub no_relax: bool,
+    /// Do not carry a garment made for other arms (a T-pose shirt on an A-pose avatar) back
+    /// to the avatar's rest pose.
+    #[arg(long)]
+    pub no_repose: bool,
     /// Seconds the simulator lets the garment settle on the rest pose (default 1).
     #[arg(long, conflicts_with = "no_relax")]
     pub relax_secs: Option<f32>,
@@ -144,6 +148,7 @@ fn options(args: &FitArgs) -> FitOptions {
         offset_m: args.offset,
         mirror: args.mirror,
         relax,
+        repose: !args.no_repose,
         ..defaults
     }
 }
@@ -180,6 +185,22 @@ fn summary(fitted: &Fitted, avatar: &Avatar, args: &FitArgs) -> String {
     let relaxed = r
         .inside_relaxed
         .map_or_else(|| "not relaxed".to_string(), |n| format!("{n} relaxed"));
+    let side = if r.sleeves_deg > 0.0 {
+        "above"
+    } else {
+        "below"
+    };
+    let sleeves = match (r.sleeves_deg, r.reposed) {
+        (d, _) if d == 0.0 => "match the avatar's arms".to_string(),
+        (d, true) => format!(
+            "made {:.0} degrees {side} the avatar's arms; re-posed to its rest pose",
+            d.abs()
+        ),
+        (d, false) => format!(
+            "made {:.0} degrees {side} the avatar's arms; not re-posed (--no-repose)",
+            d.abs()
+        ),
+    };
     format!(
         "fitted '{}' ({} vertices) onto avatar '{}' ({:.2} m tall)\n\
          \x20 units:   {} ({how_units})\n\
@@ -187,6 +208,7 @@ fn summary(fitted: &Fitted, avatar: &Avatar, args: &FitArgs) -> String {
          \x20 mirrored left/right: {}{}\n\
          \x20 scale:   {:.3} about the garment's centre{}\n\
          \x20 offset:  ({:.3}, {:.3}, {:.3}) m of the garment's centre{}\n\
+         \x20 sleeves: {sleeves}\n\
          \x20 near the body: {:.0} % of its area within 30 mm of the ease\n\
          \x20 vertices inside the body: {} as given, {} aligned, {relaxed}\n",
         fitted.name,

@@ -79,6 +79,15 @@ impl Placement {
         self.centre_m + self.local(p) * self.scale + self.offset_m
     }
 
+    /// The point the placement puts at `q` (its inverse; the scale is positive).
+    pub fn invert(&self, q: &Vec3) -> Vec3 {
+        let mut local = (q - self.offset_m - self.centre_m) / self.scale;
+        if self.mirrored {
+            local.x = -local.x;
+        }
+        self.centre_m + local
+    }
+
     /// Where the placement puts every point of `points`.
     pub fn apply_all(&self, points: &[Vec3]) -> Vec<Vec3> {
         points.iter().map(|p| self.apply(p)).collect()

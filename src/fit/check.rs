@@ -1,14 +1,15 @@
 //! How well a garment already placed on the avatar's rest pose fits it, for the training's
 //! preflight check: the share of its vertices inside the body, the share outside the body's
-//! bounding box, whether the boxes overlap at all, and the scale and shift that fitting it
-//! ([`super::align`], as `neural-cloth fit` does) would apply.
+//! bounding box, whether the boxes overlap at all, the scale and shift that fitting it
+//! ([`super::align`], as `neural-cloth fit` does) would apply, and how far its sleeves are
+//! from the avatar's arm pose ([`super::repose`]).
 
 use crate::geometry::{TriMesh, Vec3};
 use crate::scene::Avatar;
 
 use super::align::{AlignSettings, Placement, Points};
 use super::probe::{BodyProbe, bounds_of};
-use super::{FitError, FitOptions, place};
+use super::{FitError, FitOptions, place, repose};
 
 /// Limits beyond which a garment is clearly wrong for the avatar.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -26,6 +27,9 @@ pub struct FitLimits {
     /// Largest shift of the garment's centre the fit's refinement may suggest, metres;
     /// default 0.1.
     pub max_shift_m: f32,
+    /// Largest angle between the garment's sleeves and the avatar's upper arms, degrees;
+    /// default 15 (a T-pose shirt on an A-pose avatar is about 40 off).
+    pub max_sleeve_deg: f32,
 }
 
 impl Default for FitLimits {
@@ -36,6 +40,7 @@ impl Default for FitLimits {
             bounds_margin_m: 0.1,
             max_scale_change: 0.15,
             max_shift_m: 0.1,
+            max_sleeve_deg: 15.0,
         }
     }
 }
@@ -56,6 +61,9 @@ pub struct FitCheck {
     /// The shift of the garment's centre fitting would apply, metres (zero when not
     /// measured).
     pub suggested_shift_m: Vec3,
+    /// How many degrees above the avatar's upper arms its sleeves were made (0 when they
+    /// match, or not measured).
+    pub sleeves_deg: f32,
 }
 
 /// Measures `mesh` (metres, on the rest pose) against `avatar`'s body; `limits` gives the
@@ -96,6 +104,12 @@ pub fn check_fit(
         None
     };
     let fitted = fitted.unwrap_or(start);
+    let sleeves_deg = match repose::Arms::of(avatar) {
+        Some(arms) if overlaps => {
+            repose::sleeve_angle(avatar, &arms, positions, &weights, options.ease_m)?.0
+        }
+        _ => 0.0,
+    };
     Ok(FitCheck {
         vertices: n,
         inside_share: probe.inside_count(positions) as f32 / n.max(1) as f32,
@@ -103,6 +117,7 @@ pub fn check_fit(
         overlaps,
         suggested_scale: fitted.scale,
         suggested_shift_m: fitted.offset_m,
+        sleeves_deg,
     })
 }
 
@@ -143,6 +158,18 @@ impl FitCheck {
                 "it sits {:.0} mm away from where fitting would put it (limit {:.0} mm)",
                 shift * 1e3,
                 limits.max_shift_m * 1e3
+            ));
+        }
+        if self.sleeves_deg.abs() > limits.max_sleeve_deg {
+            out.push(format!(
+                "its sleeves were made {:.0} degrees {} the avatar's arms (for another arm pose, \
+                 e.g. a T-pose; fitting re-poses it)",
+                self.sleeves_deg.abs(),
+                if self.sleeves_deg > 0.0 {
+                    "above"
+                } else {
+                    "below"
+                }
             ));
         }
         out

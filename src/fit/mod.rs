@@ -10,7 +10,9 @@
 //!    the garment's surface at the ease outside the body where it is close to it;
 //! 3. **mirror**: faces turning towards the body mean the file was mirrored left/right (the
 //!    positions reflected, the faces not): it is mirrored back;
-//! 4. **relax** ([`relax`]): the reference simulator lets the garment settle on the rest pose
+//! 4. **sleeves** ([`repose`]): a garment made for other arms (a T-pose shirt on an A-pose
+//!    avatar) is carried back to the avatar's rest pose by inverse skinning;
+//! 5. **relax** ([`relax`]): the reference simulator lets the garment settle on the rest pose
 //!    (the warm start's pre-drape), which pushes out what is left inside the body.
 //!
 //! Layer: above `physics` (it runs the simulator), below `train` (whose preflight uses
@@ -21,6 +23,9 @@ pub mod check;
 mod place;
 pub mod probe;
 pub mod relax;
+pub mod repose;
+mod units;
+mod write;
 
 use std::path::{Path, PathBuf};
 
@@ -35,6 +40,8 @@ pub use check::{FitCheck, FitLimits, check_fit};
 pub use place::align;
 pub use probe::BodyProbe;
 pub use relax::RelaxSettings;
+pub use units::choose_units;
+pub use write::{format_m, write_obj};
 
 /// Errors of the fit layer.
 #[derive(Debug, thiserror::Error)]
@@ -109,6 +116,9 @@ pub struct FitOptions {
     pub ease_m: f32,
     /// Relaxation by the simulator after the alignment; `None` skips it. Default: on.
     pub relax: Option<RelaxSettings>,
+    /// Carry a garment made for other arms (a T-pose shirt on an A-pose avatar) back to the
+    /// avatar's rest pose ([`repose`]); default true.
+    pub repose: bool,
 }
 
 impl Default for FitOptions {
@@ -123,6 +133,7 @@ impl Default for FitOptions {
             mirror: MirrorMode::Auto,
             ease_m: 0.015,
             relax: Some(RelaxSettings::default()),
+            repose: true,
         }
     }
 }
@@ -175,6 +186,11 @@ pub struct FitReport {
     pub units_detected: bool,
     /// The file's up axis, as given or detected (a Z-up garment is turned Y up first).
     pub up: UpAxis,
+    /// How many degrees above the avatar's upper arms the garment's sleeves were made (0
+    /// when they match); see [`repose`].
+    pub sleeves_deg: f32,
+    /// Whether the garment was carried back to the avatar's rest pose for its sleeves.
+    pub reposed: bool,
     /// The placement after the unit conversion: mirror, scale about the garment's centre,
     /// translation of the centre (metres).
     pub placement: Placement,
@@ -199,9 +215,14 @@ impl FitReport {
         let relaxed = self
             .inside_relaxed
             .map_or_else(|| "not relaxed".to_string(), |n| format!("{n} relaxed"));
+        let sleeves = match (self.sleeves_deg, self.reposed) {
+            (d, _) if d == 0.0 => String::new(),
+            (d, true) => format!("sleeves re-posed by {:.0} degrees, ", -d),
+            (d, false) => format!("sleeves {d:.0} degrees off the arms (not re-posed), "),
+        };
         format!(
-            "units {}{}, {}scale {:.3}, offset {}; vertices inside the body: {} as given, {} \
-             aligned, {relaxed} (of {})",
+            "units {}{}, {}{sleeves}scale {:.3}, offset {}; vertices inside the body: {} as \
+             given, {} aligned, {relaxed} (of {})",
             self.units.label(),
             if self.units_detected {
                 " (detected)"
@@ -237,41 +258,6 @@ pub struct Fitted {
 pub const MIN_FIT_SHARE: f32 = 0.2;
 /// Winding score (see [`BodyProbe::winding_score`]) below which the garment is mirrored.
 const MIRRORED_WINDING: f32 = -0.2;
-
-/// The unit of a garment file whose largest extent is `extent` file units, for an avatar
-/// `body_height_m` tall: `requested` unless `Auto`; else the size-based guess
-/// ([`Units::detect_mesh`]) when the garment then spans 10 % to 130 % of the body's height,
-/// else the first of metres, centimetres, millimetres, inches, decimetres that does, else
-/// the one nearest to half the body's height.
-pub fn choose_units(requested: Units, extent: f32, body_height_m: f32) -> Units {
-    if requested != Units::Auto {
-        return requested;
-    }
-    let guess = Units::detect_mesh(extent);
-    if !(extent.is_finite() && extent > 0.0 && body_height_m > 0.0) {
-        return guess;
-    }
-    let ratio = |u: Units| extent * u.metres_per_unit().unwrap_or(1.0) / body_height_m;
-    let plausible = |u: Units| (0.1..=1.3).contains(&ratio(u));
-    let candidates = [
-        guess,
-        Units::Metres,
-        Units::Centimetres,
-        Units::Millimetres,
-        Units::Inches,
-        Units::Decimetres,
-    ];
-    if let Some(u) = candidates.into_iter().find(|&u| plausible(u)) {
-        return u;
-    }
-    candidates
-        .into_iter()
-        .min_by(|&a, &b| {
-            let d = |u: Units| (ratio(u) / 0.5).ln().abs();
-            d(a).total_cmp(&d(b))
-        })
-        .unwrap_or(guess)
-}
 
 /// Loads the garment file at `path` (OBJ, glTF or GLB) in its own units and fits it to
 /// `avatar` (see [`fit_mesh`]).
@@ -322,12 +308,30 @@ pub fn fit_mesh(
     let metres_per_unit = units.metres_per_unit().unwrap_or(1.0);
     let mut given = mesh.clone();
     given.map_positions(|p| p * metres_per_unit);
-    let Some((lo, hi)) = given.bounds() else {
+    if given.bounds().is_none() {
         return Err(no_fit("the garment has no vertices".into()));
-    };
+    }
+    let inside_given = probe.inside_count(&given.positions);
     let weights = vertex_weights(&given);
-    let placement = place_mesh(&probe, &given, &weights, (lo + hi) * 0.5, options)
-        .ok_or_else(|| no_fit("no scale and height put it around the body".into()))?;
+    let place = |given: &TriMesh| {
+        let (lo, hi) = probe::bounds_of(&given.positions)?;
+        place_mesh(&probe, given, &weights, (lo + hi) * 0.5, options)
+    };
+    let not_placed = || no_fit("no scale and height put it around the body".into());
+    let mut placement = place(&given).ok_or_else(not_placed)?;
+    // Sleeves made for other arms: re-posed in the file's frame, then placed again.
+    let (sleeves_deg, reposed) = repose::repose_given(
+        avatar,
+        &given,
+        &placement,
+        &weights,
+        options.ease_m,
+        options.repose,
+    )?;
+    if let Some(reposed) = &reposed {
+        given = reposed.clone();
+        placement = place(&given).ok_or_else(not_placed)?;
+    }
     let mut placed = given.clone();
     placed.positions = placement.apply_all(&given.positions);
     let fit_share = check_placed(
@@ -353,10 +357,12 @@ pub fn fit_mesh(
             units,
             units_detected: options.units == Units::Auto,
             up: UpAxis::Y,
+            sleeves_deg,
+            reposed: reposed.is_some(),
             placement,
             fit_share,
             vertices: given.vertex_count(),
-            inside_given: probe.inside_count(&given.positions),
+            inside_given,
             inside_aligned,
             inside_relaxed,
         },
@@ -490,48 +496,9 @@ fn near_share(probe: &BodyProbe, placed: &[Vec3], weights: &[f32], ease_m: f32) 
     }
 }
 
-/// `(x, y, z)` in metres with millimetre precision.
-pub fn format_m(v: &Vec3) -> String {
-    format!("({:.3}, {:.3}, {:.3}) m", v.x, v.y, v.z)
-}
-
-/// Writes the fitted garment as an OBJ in metres (vertex order, faces and UVs kept) through
-/// a temporary file renamed into place.
-pub fn write_obj(fitted: &Fitted, path: &Path) -> Result<(), FitError> {
-    let p = &fitted.report.placement;
-    let comment = format!(
-        "'{}' fitted: units {}, scale {:.4}, offset {}, mirrored {}",
-        fitted.name,
-        fitted.report.units.label(),
-        p.scale,
-        format_m(&p.offset_m),
-        p.mirrored
-    );
-    let text = crate::io::export::obj_seq::obj_text(
-        &fitted.mesh.positions,
-        &fitted.mesh.faces,
-        fitted.mesh.uvs.as_deref(),
-        &comment,
-    );
-    crate::io::export::atomic::write_atomic(path, text.as_bytes())?;
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn units_follow_the_request_then_the_size_against_the_body() {
-        assert_eq!(choose_units(Units::Inches, 70.0, 1.7), Units::Inches);
-        assert_eq!(choose_units(Units::Auto, 0.7, 1.7), Units::Metres);
-        assert_eq!(choose_units(Units::Auto, 70.0, 1.7), Units::Centimetres);
-        assert_eq!(choose_units(Units::Auto, 7.0, 1.7), Units::Decimetres);
-        // A 25 cm collar read in centimetres, not decimetres as its size alone suggests.
-        assert_eq!(choose_units(Units::Auto, 25.0, 1.7), Units::Centimetres);
-        assert_eq!(choose_units(Units::Auto, 700.0, 1.7), Units::Millimetres);
-        assert_eq!(choose_units(Units::Auto, f32::NAN, 1.7), Units::Metres);
-    }
 
     #[test]
     fn options_out_of_range_are_refused() {

@@ -1,11 +1,12 @@
-//! The avatar's body at its rest pose as the fitting sees it: signed clearance of a point
-//! (nearest body vertex and its normal, as the collision term and the paper's collision
-//! metric measure it), the body's bounds, its horizontal extent per height band, and the
-//! measurements built on them (vertices inside the body, which way a garment's faces turn).
+//! The avatar's body at its rest pose (or another pose) as the fitting sees it: signed
+//! clearance of a point (nearest body vertex and its normal, as the collision term and the
+//! paper's collision metric measure it), the body's bounds, its horizontal extent per height
+//! band, and the measurements built on them (vertices inside the body, which way a garment's
+//! faces turn).
 
 use crate::geometry::{TriMesh, Vec3, safe_normalize};
 use crate::physics::PosedBody;
-use crate::scene::Avatar;
+use crate::scene::{Avatar, Pose};
 
 use super::FitError;
 
@@ -28,11 +29,14 @@ pub struct BodyProbe {
 impl BodyProbe {
     /// The body of `avatar` at the rest pose of its skeleton.
     pub fn rest(avatar: &Avatar) -> Result<Self, FitError> {
-        let body = PosedBody::from_avatar(avatar, &avatar.skeleton.rest_pose()).map_err(|e| {
-            FitError::Body {
-                avatar: avatar.name.clone(),
-                reason: e.to_string(),
-            }
+        Self::posed(avatar, &avatar.skeleton.rest_pose())
+    }
+
+    /// The body of `avatar` at `pose`.
+    pub fn posed(avatar: &Avatar, pose: &Pose) -> Result<Self, FitError> {
+        let body = PosedBody::from_avatar(avatar, pose).map_err(|e| FitError::Body {
+            avatar: avatar.name.clone(),
+            reason: e.to_string(),
         })?;
         let Some((lo_m, hi_m)) = bounds_of(body.positions()) else {
             return Err(FitError::Body {
