@@ -10,7 +10,7 @@ use crate::physics::cost::{CostReport, measure_term_costs};
 use crate::scene::config::Effects;
 
 use super::report::write_markdown;
-use super::training::{MatmulRate, TrainBench, TrainCase, bench_training, measure_matmul_rates};
+use super::training::{MatmulRate, TrainBench, TrainCase, bench_cases, measure_matmul_rates};
 use super::{
     InferenceBench, MemoryBandwidth, PrecisionError, bench_avatar, bench_inference,
     measure_bandwidth, measure_precision_error, random_weights_of, scene_with_dof,
@@ -367,12 +367,12 @@ fn run_training(
     let mut training = Vec::new();
     let mut matmul = Vec::new();
     for (k, &batch) in options.train_batches.iter().enumerate() {
-        for case in training_cases(k, batch, options.train_variants) {
-            let t = bench_training(case, options.train_steps, options.predrape_secs)?;
+        let cases = training_cases(k, batch, options.train_variants);
+        for t in bench_cases(&cases, options.train_steps, options.predrape_secs)? {
             log(&format!(
                 "training step, batch {batch}, {}, {}: {:.1} ms, peak {:.0} MB",
                 super::report::effects_label(&t.case.effects),
-                case.path_label(),
+                t.case.path_label(),
                 t.ms_per_step,
                 t.peak_bytes as f64 / 1e6
             ));

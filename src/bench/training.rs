@@ -176,73 +176,141 @@ pub fn step_flops(model: &ClothNet, batch: usize, frames: usize, predicted: usiz
     f
 }
 
-/// Median step time of `case` on the default scene (0.5 s window, 30 fps) over `steps` steps.
+/// A training session of one [`TrainCase`], ready to step.
+struct Prepared {
+    case: TrainCase,
+    session: crate::train::session::NeuralSession,
+    train: TrainConfig,
+    dir: std::path::PathBuf,
+}
+
+impl Prepared {
+    /// The default scene (0.5 s window, 30 fps) with `case`'s effects, batch and paths; a run
+    /// folder of its own (`tag`) in the temporary directory.
+    fn new(case: TrainCase, predrape_secs: Option<f32>, tag: usize) -> Result<Self, String> {
+        let mut config = SceneConfig::default_scene();
+        config.effects = case.effects;
+        let scene = build_builtin(&config).map_err(|e| e.to_string())?;
+        let dir = std::env::temp_dir().join(format!(
+            "neural-cloth-bench-{}-{}-{tag}",
+            std::process::id(),
+            case.batch
+        ));
+        let defaults = TrainConfig::default();
+        let train = TrainConfig {
+            batch_size: case.batch,
+            window_secs: 0.5,
+            fps: 30.0,
+            fused_physics: case.fused_physics,
+            fused_adam: case.fused_adam,
+            predrape_secs: predrape_secs.unwrap_or(defaults.predrape_secs),
+            ..defaults
+        };
+        let setup = TrainSetup {
+            scene,
+            scene_config: config,
+            train: train.clone(),
+            model: ClothNetConfig::default(),
+            descriptors: DescriptorConfig::default(),
+            fabric: None,
+            location: RunLocation::At(dir.clone()),
+        };
+        let (session, _) = prepare(setup).map_err(|e| e.to_string())?;
+        Ok(Self {
+            case,
+            session,
+            train,
+            dir,
+        })
+    }
+
+    fn step(&mut self) -> Result<f64, String> {
+        let start = Instant::now();
+        self.session.step().map_err(|e| e.to_string())?;
+        Ok(start.elapsed().as_secs_f64())
+    }
+}
+
+impl Drop for Prepared {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+/// Peak resident memory of a few steps of `case` alone in the process (its own session, the
+/// buffers of earlier runs returned first; no drape: it does not change a step's memory).
+fn peak_of(case: TrainCase) -> Result<usize, String> {
+    let mut run = Prepared::new(case, Some(0.0), usize::MAX)?;
+    crate::train::alloc::release_freed_buffers();
+    reset_peak_rss();
+    for _ in 0..WARM_UP_STEPS {
+        run.step()?;
+    }
+    Ok(peak_rss_bytes())
+}
+
+/// Median step times of `cases` on the default scene over `steps` steps each, stepped round
+/// robin (one step of each case in turn) so that changes of machine load affect them alike.
 /// `predrape_secs` is the warm start's drape (the default 1.5 s in the full suite; 0 skips the
 /// simulator when only the step matters, e.g. to profile it: the drape sets the basis bias,
-/// not the work of a step).
+/// not the work of a step). The peak memory of each case is measured afterwards, alone.
+pub fn bench_cases(
+    cases: &[TrainCase],
+    steps: usize,
+    predrape_secs: Option<f32>,
+) -> Result<Vec<TrainBench>, String> {
+    let mut runs = cases
+        .iter()
+        .enumerate()
+        .map(|(k, &case)| Prepared::new(case, predrape_secs, k))
+        .collect::<Result<Vec<_>, _>>()?;
+    for run in &mut runs {
+        for _ in 0..WARM_UP_STEPS {
+            run.step()?;
+        }
+    }
+    let mut times = vec![Vec::new(); runs.len()];
+    for _ in 0..steps.max(1) {
+        for (run, t) in runs.iter_mut().zip(&mut times) {
+            t.push(run.step()?);
+        }
+    }
+    let mut out = Vec::with_capacity(runs.len());
+    for (run, mut t) in runs.into_iter().zip(times) {
+        let model = run.session.model();
+        let (vertices, input_joints) = (model.vertices, model.input_joints);
+        let flops = step_flops(
+            model,
+            run.case.batch,
+            run.train.window_frames(),
+            PREDICTED_FRAMES,
+        );
+        out.push(TrainBench {
+            case: run.case,
+            window_secs: run.train.window_secs,
+            fps: run.train.fps,
+            ms_per_step: super::median_ms(&mut t),
+            peak_bytes: 0,
+            flops,
+            vertices,
+            input_joints,
+        });
+    }
+    for b in &mut out {
+        b.peak_bytes = peak_of(b.case)?;
+    }
+    Ok(out)
+}
+
+/// [`bench_cases`] of one case.
 pub fn bench_training(
     case: TrainCase,
     steps: usize,
     predrape_secs: Option<f32>,
 ) -> Result<TrainBench, String> {
-    let mut config = SceneConfig::default_scene();
-    config.effects = case.effects;
-    let scene = build_builtin(&config).map_err(|e| e.to_string())?;
-    let dir = std::env::temp_dir().join(format!(
-        "neural-cloth-bench-{}-{}",
-        std::process::id(),
-        case.batch
-    ));
-    let defaults = TrainConfig::default();
-    let train = TrainConfig {
-        batch_size: case.batch,
-        window_secs: 0.5,
-        fps: 30.0,
-        fused_physics: case.fused_physics,
-        fused_adam: case.fused_adam,
-        predrape_secs: predrape_secs.unwrap_or(defaults.predrape_secs),
-        ..defaults
-    };
-    let setup = TrainSetup {
-        scene,
-        scene_config: config,
-        train: train.clone(),
-        model: ClothNetConfig::default(),
-        descriptors: DescriptorConfig::default(),
-        fabric: None,
-        location: RunLocation::At(dir.clone()),
-    };
-    let (mut session, _) = prepare(setup).map_err(|e| e.to_string())?;
-    // Buffers kept from earlier runs of this process (train::alloc) would count in this peak.
-    crate::train::alloc::release_freed_buffers();
-    let (vertices, input_joints) = (session.model().vertices, session.model().input_joints);
-    let flops = step_flops(
-        session.model(),
-        case.batch,
-        train.window_frames(),
-        PREDICTED_FRAMES,
-    );
-    reset_peak_rss();
-    let mut times = Vec::new();
-    for k in 0..steps + WARM_UP_STEPS {
-        let start = Instant::now();
-        session.step().map_err(|e| e.to_string())?;
-        if k >= WARM_UP_STEPS {
-            times.push(start.elapsed().as_secs_f64());
-        }
-    }
-    let peak_bytes = peak_rss_bytes();
-    let _ = std::fs::remove_dir_all(&dir);
-    Ok(TrainBench {
-        case,
-        window_secs: train.window_secs,
-        fps: train.fps,
-        ms_per_step: super::median_ms(&mut times),
-        peak_bytes,
-        flops,
-        vertices,
-        input_joints,
-    })
+    bench_cases(&[case], steps, predrape_secs)?
+        .pop()
+        .ok_or_else(|| "no training benchmark ran".to_string())
 }
 
 /// Median milliseconds of burn's `[m, k] × [k, n]` product on `device` ([`super::median_ms`]

@@ -46,6 +46,12 @@ pub fn training_tables(r: &BenchReport) -> String {
     let _ = writeln!(s, "\n### Training step (default scene, flex CPU backend)\n");
     let _ = writeln!(
         s,
+        "Step times: median over the timed steps; the paths of one batch size are stepped round \
+         robin (one step of each in turn, all sessions alive) so that the machine's changing load \
+         affects them alike. Peak MB: each path's process peak over a few steps alone.\n"
+    );
+    let _ = writeln!(
+        s,
         "Floor: the step's matrix and skinning FLOPs (forward and backward, counted from the \
          network's layers; the physics is a few MFLOP and not counted) over the best rate of \
          burn's own matrix product measured in this run on the step's shapes (table below).\n"
