@@ -2,10 +2,12 @@
 //! trainer thread ([`super::handle`]).
 //!
 //! One step (paper §3.4, §4.1): sample `B` windows of `ceil(window·fps)+3` frames, encode
-//! them, decode the last 3 frames and skin them; static losses on the last frame; inertia of
-//! `x_t` against the stop-gradient projection `2x_{t-1} - x_{t-2}` (or, in `snug` mode, with
-//! gradients into the past frames); motion augmentation replaces the dynamic code of a
-//! fraction of the batch by another sample's (encoders detached, static losses only); Adam.
+//! them, decode the last `loss_frames + 2` frames and skin them; static losses on each of the
+//! last `loss_frames` frames (1, the paper's: the last frame only); inertia of each such `x_t`
+//! against the stop-gradient projection `2x_{t-1} - x_{t-2}` of the network's own previous
+//! frames (or, in `snug` mode, with gradients into the past frames); motion augmentation
+//! replaces the dynamic code of a fraction of the batch by another sample's (encoders
+//! detached, static losses only); Adam.
 
 use std::path::PathBuf;
 use std::sync::Arc;
