@@ -1,13 +1,16 @@
 //! A human-readable report on any supported file (glb, gltf, obj, bvh): joints as a short
 //! tree, vertices and faces, every mesh of an avatar and how it was used (skinned, rigid part
 //! of a joint, ignored and why), animations with frame counts and durations, units, the up
-//! axis, warnings.
+//! axis, warnings, and what else the file holds that the tool does not use
+//! ([`super::inspect_contents`]: materials, cameras, morph targets, OBJ groups, ...).
 
 use std::fmt::Write as _;
 use std::path::Path;
 
+use super::inspect_contents::{bvh_contents, gltf_contents, obj_contents};
 use super::joint_map::JointMap;
 use super::joint_names::classify;
+use super::joint_structure::{RigShape, label_by_structure};
 use super::retarget::{SourceMotion, joint_mapping};
 use super::{ImportOptions, IoError, LoadedMesh, MeshUsage, MeshUse, Units, UpAxis};
 use crate::geometry::TriMesh;
@@ -51,12 +54,15 @@ pub fn inspect_with(path: &Path, options: &ImportOptions) -> Result<String, IoEr
                         m.fps
                     );
                 }
+                gltf_contents(&mut out, path)?;
                 warnings(&mut out, &loaded.warnings);
             }
             Err(IoError::NoSkin { .. }) => {
                 let loaded = super::load_gltf_mesh(path, &options)?;
                 let _ = writeln!(out, "kind: glTF mesh without a skin (usable as a garment)");
                 static_mesh(&mut out, &options, &loaded, true);
+                gltf_contents(&mut out, path)?;
+                warnings(&mut out, &loaded.warnings);
             }
             Err(e) => return Err(e),
         },
@@ -64,6 +70,8 @@ pub fn inspect_with(path: &Path, options: &ImportOptions) -> Result<String, IoEr
             let loaded = super::load_obj(path, &options)?;
             let _ = writeln!(out, "kind: OBJ mesh");
             static_mesh(&mut out, &options, &loaded, false);
+            obj_contents(&mut out, path)?;
+            warnings(&mut out, &loaded.warnings);
         }
         "bvh" => {
             let mut bvh = super::load_bvh(path)?;
@@ -88,14 +96,7 @@ pub fn inspect_with(path: &Path, options: &ImportOptions) -> Result<String, IoEr
             );
             let turn = up.to_y_up();
             let rest: Vec<_> = bvh.rest_positions().iter().map(|p| turn * p).collect();
-            let low = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
-            if let Some(root) = rest.first() {
-                let _ = writeln!(
-                    out,
-                    "hip height (rest, above the lowest joint): {:.3} m",
-                    (root.y - low) * scale
-                );
-            }
+            hip_height(&mut out, &names, &parents, &rest, scale);
             let rig = classify(&names);
             let mut canonical: Vec<&str> = rig.canonical.iter().flatten().copied().collect();
             canonical.sort_unstable();
@@ -106,6 +107,7 @@ pub fn inspect_with(path: &Path, options: &ImportOptions) -> Result<String, IoEr
                 canonical.len(),
                 canonical.join(", ")
             );
+            bvh_contents(&mut out, &bvh);
             warnings(&mut out, &bvh.warnings);
         }
         _ => {
@@ -205,6 +207,54 @@ fn units_line(out: &mut String, asked: Units, used: Units) {
     );
 }
 
+/// Writes the rest hip height above the lowest end joint, in metres (`scale` per file unit):
+/// of the hips the names give, else the skeleton's structure, else the root joint.
+fn hip_height(
+    out: &mut String,
+    names: &[String],
+    parents: &[Option<usize>],
+    rest: &[crate::geometry::Vec3],
+    scale: f32,
+) {
+    let shape = RigShape {
+        parents,
+        rest,
+        frames: &[],
+    };
+    let (hips, how) = match classify(names).joint_of("Hips") {
+        Some(h) => (h, "named"),
+        None => match label_by_structure(&shape)
+            .ok()
+            .and_then(|l| l.iter().position(|c| *c == Some("Hips")))
+        {
+            Some(h) => (h, "found by structure"),
+            None => (0, "the root joint"),
+        },
+    };
+    let mut has_child = vec![false; rest.len()];
+    for p in parents.iter().flatten() {
+        if let Some(c) = has_child.get_mut(*p) {
+            *c = true;
+        }
+    }
+    let low = rest
+        .iter()
+        .zip(&has_child)
+        .filter(|(_, c)| !**c)
+        .map(|(p, _)| p.y)
+        .fold(f32::INFINITY, f32::min);
+    if let Some(h) = rest.get(hips)
+        && low.is_finite()
+    {
+        let _ = writeln!(
+            out,
+            "hip height (rest, above the lowest end joint): {:.3} m ('{}', {how})",
+            (h.y - low) * scale,
+            names.get(hips).map_or("?", String::as_str)
+        );
+    }
+}
+
 /// Writes `up: AXIS (given, detected or as glTF specifies[; turned Y up])`.
 fn up_line(out: &mut String, asked: UpAxis, used: UpAxis, gltf_mesh: bool) {
     let how = match (asked, gltf_mesh) {
@@ -228,7 +278,6 @@ fn static_mesh(out: &mut String, options: &ImportOptions, loaded: &LoadedMesh, g
         let size = hi - lo;
         let _ = writeln!(out, "size: {:.3} x {:.3} x {:.3} m", size.x, size.y, size.z);
     }
-    warnings(out, &loaded.warnings);
 }
 
 fn mesh_lines(out: &mut String, what: &str, mesh: &TriMesh) {

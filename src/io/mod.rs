@@ -19,6 +19,7 @@ mod gltf_body;
 mod gltf_doc;
 pub mod gltf_mesh;
 pub mod inspect;
+mod inspect_contents;
 pub mod joint_map;
 pub mod joint_names;
 pub mod joint_structure;

@@ -212,6 +212,16 @@ fn a_larger_rig_with_helpers_fingers_and_end_joints_maps_by_structure() {
         "{report}"
     );
     assert!(report.contains("essential joints: all mapped"), "{report}");
+    // The hip height is the hips' (found by structure), not the root's at the floor.
+    let line = format!(
+        "hip height (rest, above the lowest end joint): 0.925 m ('{}', found by structure)",
+        names[rig.index[0]]
+    );
+    assert!(report.contains(&line), "missing '{line}' in:\n{report}");
+    assert!(
+        report.contains("end sites: ") && report.contains("position channels: 0 (none)"),
+        "{report}"
+    );
 }
 
 #[test]

@@ -157,6 +157,17 @@ fn a_z_up_glb_avatar_stands_up() {
     for (p, q) in want.iter().zip(&got) {
         assert!((p - q).norm() < 1e-4, "{p:?} vs {q:?}");
     }
+    // inspect tells what else the document holds.
+    let text = neural_cloth::io::inspect(&path).unwrap();
+    for line in [
+        "up: Z (detected; turned Y up)",
+        "document: 1 scenes, ",
+        "animation channels: ",
+        "materials: ",
+        "extensions: used ",
+    ] {
+        assert!(text.contains(line), "missing '{line}' in:\n{text}");
+    }
     // Kept as it is when asked.
     let (up, kept, _) = joints(UpAxis::Y);
     assert_eq!(up, UpAxis::Y);
@@ -233,6 +244,13 @@ fn z_up_garments_are_turned_and_fit_and_inspect_say_so() {
     assert!(text.contains("up: Z (detected; turned Y up)"), "{text}");
     let text = run(&["inspect", &path(&lying), "--up", "y"]);
     assert!(text.contains("up: Y (given)"), "{text}");
+    for line in [
+        "objects and groups: 1 ((no name): ",
+        "materials: none",
+        "normals: 0 (not used: recomputed from the faces)",
+    ] {
+        assert!(text.contains(line), "missing '{line}' in:\n{text}");
+    }
     let out = dir.path().join("fitted.obj");
     let text = run(&[
         "fit",
