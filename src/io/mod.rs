@@ -12,6 +12,7 @@ pub mod bvh;
 mod bvh_parse;
 pub mod bvh_write;
 pub mod export;
+pub mod facing;
 mod gltf_accessor;
 mod gltf_anim;
 pub mod gltf_avatar;

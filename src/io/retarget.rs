@@ -10,7 +10,8 @@
 //! rotation. The root translation is scaled by the ratio of hip heights above the lowest joint
 //! (leg lengths, so the motion's units do not matter), grounded on the lowest joint and
 //! optionally re-centred horizontally. Both rigs are Y up (a Z-up BVH is turned Y up when it
-//! is read, see [`Bvh::up_axis`]).
+//! is read, see [`Bvh::up_axis`]); a motion whose rig faces another way than the avatar (by
+//! their toes) is first turned about the vertical to face the same way ([`super::facing`]).
 
 use std::path::PathBuf;
 
@@ -183,6 +184,23 @@ pub fn retarget(
     mapping.check_essential(&skeleton.names, &source.names, &source.path)?;
     let map = &mapping.source;
     let mut warnings = source.warnings.clone();
+    let turned;
+    let source = match super::facing::turn_to_avatar(
+        source,
+        &skeleton.joint_positions(&skeleton.rest_pose()),
+        &mapping,
+    ) {
+        Some((s, degrees)) => {
+            warnings.push(format!(
+                "the motion's rig faces {:.0} degrees away from the avatar's (its toes point \
+                 elsewhere); turned to face the same way",
+                degrees.abs()
+            ));
+            turned = s;
+            &turned
+        }
+        None => source,
+    };
     let by_structure: Vec<String> = (0..n)
         .filter(|&a| mapping.how[a] == Some(MatchKind::Structure))
         .filter_map(|a| {

@@ -2,7 +2,9 @@
 //! (named and with nonsense joint names), the mannequin written as a Z-up GLB, and built-in
 //! garments written as Z-up OBJ files (in centimetres too). Each is detected and turned Y up
 //! so that it matches what it was made from; `--up y` keeps a file as it is, `--up z` turns
-//! one that detection would not; `fit` and `inspect` say what they did.
+//! one that detection would not; `fit` and `inspect` say what they did. Motions whose rig
+//! faces another way (turned 90 or 180 degrees, or Z up facing +Y) are turned to face as the
+//! avatar does.
 
 use std::path::Path;
 use std::process::Command;
@@ -40,7 +42,12 @@ fn z_up_skeleton(sk: &Skeleton) -> Skeleton {
 /// `sk` laid down Z up with identity rest rotations (as BVH needs): every offset turned, every
 /// rotation conjugated.
 fn z_up_bvh_rig(sk: &Skeleton, motion: &Motion) -> (Skeleton, Motion) {
-    let r = to_z_up();
+    turned_bvh_rig(sk, motion, to_z_up())
+}
+
+/// `sk` and `motion` turned by `r` with identity rest rotations (as BVH needs): every offset
+/// turned, every rotation conjugated, so every joint lands at `r` times where it was.
+fn turned_bvh_rig(sk: &Skeleton, motion: &Motion, r: Quat) -> (Skeleton, Motion) {
     let mut z = sk.clone();
     for t in &mut z.rest_local {
         t.translation = r * t.translation;
@@ -266,4 +273,35 @@ fn z_up_garments_are_turned_and_fit_and_inspect_say_so() {
         text.contains("up:      Z (detected from its shape; turned Y up)"),
         "{text}"
     );
+}
+
+#[test]
+fn a_motion_whose_rig_faces_another_way_is_turned_to_face_the_avatars_way() {
+    let avatar = mannequin().unwrap();
+    let sk = &avatar.skeleton;
+    let source = neural_cloth::scene::procedural::motion(MotionKind::Walk, 30.0, 1.5).unwrap();
+    let nonsense: Vec<String> = (0..sk.len()).map(|k| format!("q{}", k * 17 % 89)).collect();
+    let yaw = |deg: f32| Quat::from_scaled_axis(Vec3::y() * deg.to_radians());
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        ("back.bvh", yaw(180.0), sk.names.clone(), 180.0),
+        ("side.bvh", yaw(90.0), nonsense.clone(), 90.0),
+        ("other_side.bvh", yaw(-90.0), sk.names.clone(), 90.0),
+        // Z up, made facing +Y: -Z once turned Y up.
+        ("zup_plus_y.bvh", to_z_up() * yaw(180.0), nonsense, 180.0),
+    ];
+    for (file, r, names, degrees) in cases {
+        let (t, on_t) = turned_bvh_rig(sk, &source, r);
+        let path = write_bvh(dir.path(), file, &t, &on_t, &names);
+        let mut warnings = Vec::new();
+        let motions = load_motions(&path, &avatar, &import(30.0, None), &mut warnings)
+            .unwrap_or_else(|e| panic!("{file}: {e}"));
+        let err = max_joint_error(sk, &motions[0], &source);
+        assert!(err < 2e-3, "{file}: joints off by {err} m");
+        let said = format!("faces {degrees:.0} degrees away from the avatar's");
+        assert!(
+            warnings.iter().any(|w| w.contains(&said)),
+            "{file}: {warnings:?}"
+        );
+    }
 }
