@@ -125,6 +125,8 @@ impl StepFlops {
 pub struct MatmulRate {
     /// What the shape is in the step.
     pub what: String,
+    /// The part of the step whose floor this rate sets.
+    pub part: Part,
     /// `[m, k] × [k, n]`.
     pub m: usize,
     /// Inner dimension.
@@ -135,6 +137,17 @@ pub struct MatmulRate {
     pub ms: f64,
     /// Billions of floating-point operations per second (`2mkn / time`).
     pub gflops: f64,
+}
+
+/// The parts of a step whose matrix products share a shape class.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum Part {
+    /// The basis products (`B·K` rows against `V·3` columns).
+    Basis,
+    /// The layers on every frame or the predicted frames (encoders, decoder; skinning too).
+    Layers,
+    /// The GRU's per-frame products (`B` rows).
+    Gru,
 }
 
 /// Forward + backward FLOPs of a linear layer applied to `rows` rows.
@@ -340,23 +353,37 @@ pub fn measure_matmul_rates(batch: usize, vertices: usize, joints: usize) -> Vec
     let latent = ClothNetConfig::default().latent;
     let dof = 3 * vertices;
     let shapes = [
-        ("basis product", rows, latent, dof),
-        ("basis weight gradient", latent, rows, dof),
+        ("basis product", Part::Basis, rows, latent, dof),
+        ("basis weight gradient", Part::Basis, latent, rows, dof),
         (
             "joint features → 512, every frame",
+            Part::Layers,
             window_rows,
             32 * joints,
             512,
         ),
-        ("512 → 512, every frame", window_rows, latent, latent),
-        ("GRU step, one gate", batch, latent, latent),
+        (
+            "512 → 512, every frame",
+            Part::Layers,
+            window_rows,
+            latent,
+            latent,
+        ),
+        (
+            "GRU step, three gates",
+            Part::Gru,
+            batch,
+            latent,
+            3 * latent,
+        ),
     ];
     shapes
         .iter()
-        .map(|&(what, m, k, n)| {
+        .map(|&(what, part, m, k, n)| {
             let ms = time_matmul(&device, m, k, n);
             MatmulRate {
                 what: what.to_string(),
+                part,
                 m,
                 k,
                 n,
@@ -367,13 +394,27 @@ pub fn measure_matmul_rates(batch: usize, vertices: usize, joints: usize) -> Vec
         .collect()
 }
 
-/// The best rate of `rates` in FLOP per second (the floor divides by it).
-pub fn best_rate(rates: &[MatmulRate]) -> Option<f64> {
-    rates
+/// The mean rate of the shapes of `part` in `rates`, FLOP per second.
+fn part_rate(rates: &[MatmulRate], part: Part) -> Option<f64> {
+    let of: Vec<f64> = rates
         .iter()
+        .filter(|r| r.part == part && r.gflops.is_finite() && r.gflops > 0.0)
         .map(|r| r.gflops * 1e9)
-        .filter(|r| r.is_finite() && *r > 0.0)
-        .max_by(f64::total_cmp)
+        .collect();
+    (!of.is_empty()).then(|| of.iter().sum::<f64>() / of.len() as f64)
+}
+
+/// The floor of a step doing `flops` in seconds: each part's FLOPs over the rate of burn's
+/// matrix product on that part's shapes (`rates`, measured in the same run).
+pub fn floor_secs(flops: &StepFlops, rates: &[MatmulRate]) -> Option<f64> {
+    let basis = part_rate(rates, Part::Basis)?;
+    let layers = part_rate(rates, Part::Layers)?;
+    let gru = part_rate(rates, Part::Gru)?;
+    Some(
+        flops.basis / basis
+            + flops.gru / gru
+            + (flops.encoders + flops.decoder + flops.skinning) / layers,
+    )
 }
 
 #[cfg(test)]
@@ -397,6 +438,35 @@ mod tests {
             f.total(),
             f.encoders + f.gru + f.decoder + f.basis + f.skinning
         );
+    }
+
+    #[test]
+    fn the_floor_divides_each_part_by_its_own_rate() {
+        let rate = |part, gflops| MatmulRate {
+            what: String::new(),
+            part,
+            m: 1,
+            k: 1,
+            n: 1,
+            ms: 1.0,
+            gflops,
+        };
+        let flops = StepFlops {
+            encoders: 1e9,
+            gru: 2e9,
+            decoder: 1e9,
+            basis: 4e9,
+            skinning: 0.0,
+        };
+        let rates = [
+            rate(Part::Basis, 30.0),
+            rate(Part::Basis, 50.0),
+            rate(Part::Layers, 100.0),
+            rate(Part::Gru, 50.0),
+        ];
+        let floor = floor_secs(&flops, &rates).unwrap();
+        assert!((floor - (4.0 / 40.0 + 2.0 / 50.0 + 2.0 / 100.0)).abs() < 1e-12);
+        assert!(floor_secs(&flops, &rates[..2]).is_none());
     }
 
     #[test]
