@@ -5,6 +5,7 @@ mod app_launcher;
 mod bake;
 mod bench;
 mod compare;
+mod eval;
 mod fit;
 pub mod headless;
 mod inspect;
@@ -54,7 +55,7 @@ pub enum Command {
     /// Train a model on a scene headless (default: the built-in scene).
     Train(Box<train::TrainArgs>),
     /// Print the §4.2 metrics of a trained model on its scene's test split.
-    Eval(train::EvalArgs),
+    Eval(eval::EvalArgs),
     /// Bake a motion with a trained model into PC2, MDD, OBJ sequence, USD or glTF.
     Bake(bake::BakeArgs),
     /// Bake a motion with the reference simulator (the paper's Eq. 8 baseline).
@@ -99,7 +100,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         }) => inspect::run(&file, avatar.as_deref(), joint_map.as_deref(), up),
         Some(Command::Fit(args)) => fit::run(args),
         Some(Command::Train(args)) => train::run(*args),
-        Some(Command::Eval(args)) => train::eval(args),
+        Some(Command::Eval(args)) => eval::eval(args),
         Some(Command::Bake(args)) => bake::run(args),
         Some(Command::Simulate(args)) => bake::simulate(args),
         Some(Command::Compare(args)) => compare::run(args),

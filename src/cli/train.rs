@@ -9,7 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use neural_cloth::io::scene_loader::{folder_split, load_scene, load_scene_file};
 use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
-use neural_cloth::scene::config::{AvatarSource, GarmentSource, MotionSource, SceneConfig, Split};
+use neural_cloth::scene::config::{AvatarSource, GarmentSource, MotionSource, SceneConfig};
 use neural_cloth::train::retention::{MAX_KEEP_NEWEST, Retention};
 use neural_cloth::train::{
     BackendKind, RunDir, RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer, resume,
@@ -537,20 +537,6 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Arguments of `eval`.
-#[derive(clap::Args, Debug)]
-pub struct EvalArgs {
-    /// Run folder (or checkpoint folder) of a trained model.
-    pub checkpoint: PathBuf,
-    /// Split to evaluate: train, validation or test.
-    #[arg(long, default_value = "test")]
-    pub split: String,
-    /// Dynamic weight w in [0, 2].
-    #[arg(long, default_value_t = 1.0)]
-    pub w: f32,
-}
-
-/// Runs `eval`: prints the §4.2 metrics per motion and their mean, as JSON.
 /// Writes the checkpoint retention the flags ask for into the run folder `run_dir` (the
 /// trainer reads it at every prune; flags not given keep what the run has). A line to print:
 /// the policy set, or why it could not be.
@@ -579,55 +565,4 @@ fn apply_retention(run_dir: &Path, keep: Option<usize>, no_keep_best: bool) -> O
         ),
         Err(e) => format!("warning: checkpoint retention not set: {e}"),
     })
-}
-
-pub fn eval(args: EvalArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        (0.0..=2.0).contains(&args.w),
-        "w = {} is outside [0, 2]",
-        args.w
-    );
-    let split = match args.split.as_str() {
-        "train" => Split::Train,
-        "validation" => Split::Validation,
-        "test" => Split::Test,
-        other => anyhow::bail!("unknown split '{other}' (train, validation, test)"),
-    };
-    let trained = neural_cloth::train::load_trained(&args.checkpoint)?;
-    for w in &trained.warnings {
-        eprintln!("warning: {w}");
-    }
-    let names: Vec<&str> = trained
-        .scene
-        .motions_in(split)
-        .map(|m| m.name.as_str())
-        .collect();
-    let count = |s: Split| trained.scene.motions_in(s).count();
-    anyhow::ensure!(
-        !names.is_empty(),
-        "the run's scene has no motion in the {} split (train {}, validation {}, test {}); \
-         choose another with --split: {}",
-        args.split,
-        count(Split::Train),
-        count(Split::Validation),
-        count(Split::Test),
-        args.checkpoint.display()
-    );
-    eprintln!(
-        "evaluating the {} split: {} motions ({})",
-        args.split,
-        names.len(),
-        names.join(", ")
-    );
-    let report = neural_cloth::train::evaluate(&trained, split, args.w)?;
-    println!("{}", serde_json::to_string_pretty(&report)?);
-    // The official code's definitions, beside ours (on stderr: stdout stays pure JSON).
-    eprintln!(
-        "bending (paper): {:.4} rad (ours {:.4})\nstretch (paper): {:.4} (ours: strain {:.4})",
-        report.mean.paper_bending,
-        report.mean.bending,
-        report.mean.paper_stretch,
-        report.mean.strain
-    );
-    Ok(())
 }
