@@ -7,9 +7,10 @@
 //! motion joint turns away from the motion's rest. With `align_rest`, a limb joint's rest is
 //! first turned so that its bone points where the motion's bone points in the motion's rest
 //! (a T-pose clip on an A-pose avatar raises the arms). Unmapped joints keep their rest local
-//! rotation. The root translation is scaled by the ratio of hip heights above the lowest joint
-//! (leg lengths, so the motion's units do not matter), grounded on the lowest joint and
-//! optionally re-centred horizontally. Both rigs are Y up (a Z-up BVH is turned Y up when it
+//! rotation. The root translation is scaled by the ratio of hip heights above the lowest end
+//! joint (leg lengths, so the motion's units do not matter), grounded so that the avatar's
+//! lowest end joint over the whole motion is at its rest height, and optionally re-centred
+//! horizontally. Both rigs are Y up (a Z-up BVH is turned Y up when it
 //! is read, see [`Bvh::up_axis`]); a motion whose rig faces another way than the avatar (by
 //! their toes) is first turned about the vertical to face the same way ([`super::facing`]).
 
@@ -300,6 +301,7 @@ pub fn retarget(
         root.place(skeleton, w, &mut pose);
         frames.push(pose);
     }
+    root.ground(skeleton, &mut frames);
     let scene_err = |source| IoError::Scene {
         source,
         path: path(),
@@ -504,6 +506,27 @@ impl RootPlacement {
         let shift = inv * (target - current);
         if shift.iter().all(|v| v.is_finite()) {
             pose.root_translation += shift;
+        }
+    }
+
+    /// Moves every frame up or down together so that the lowest end joint of the avatar over
+    /// the whole motion is at its rest ground: the motion's own ground, scaled by hip
+    /// heights, leaves the feet above or below the floor when the rigs' legs differ (a CMU
+    /// rest pose's legs are splayed, its hips joint sits high above the thighs).
+    fn ground(&self, skeleton: &Skeleton, frames: &mut [Pose]) {
+        let (Some(_), Some(inv)) = (self.under_root0, self.root_linear_inv) else {
+            return;
+        };
+        let ends = end_joints(&skeleton.parents);
+        let lowest = frames
+            .iter()
+            .map(|pose| lowest_end(&skeleton.joint_positions(pose), &ends))
+            .fold(f32::INFINITY, f32::min);
+        let shift = inv * Vec3::new(0.0, self.ground_a - lowest, 0.0);
+        if shift.iter().all(|v| v.is_finite()) {
+            for pose in frames {
+                pose.root_translation += shift;
+            }
         }
     }
 }
