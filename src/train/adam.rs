@@ -89,6 +89,13 @@ struct Moments {
     path: Option<String>,
 }
 
+/// The moments of one parameter as read from a record, before both are checked present.
+struct SavedMoments {
+    m: Option<Vec<f32>>,
+    v: Option<Vec<f32>>,
+    shape: Vec<usize>,
+}
+
 /// The per-step scalars of burn's Adam, computed as burn computes them (all `f32`).
 #[derive(Clone, Copy, Debug)]
 struct Coefficients {
@@ -287,8 +294,7 @@ impl FusedAdam {
         let reader = Reader::from_bytes(bytes).map_err(|e| record(e.to_string()))?;
         let scalars = reader.scalars().clone();
         let paths = reader.metadata().clone();
-        let mut moments: HashMap<u64, (Option<Vec<f32>>, Option<Vec<f32>>, Vec<usize>)> =
-            HashMap::new();
+        let mut moments: HashMap<u64, SavedMoments> = HashMap::new();
         for tensor in reader.into_tensors().map_err(|e| record(e.to_string()))? {
             let (name, dtype, shape, param_id, bytes) =
                 tensor.into_parts().map_err(|e| record(e.to_string()))?;
@@ -297,12 +303,14 @@ impl FusedAdam {
                 .try_into_vec::<f32>()
                 .map_err(|e| record(format!("{name}: {e:?}")))?;
             let id = param_id.ok_or_else(|| record(format!("tensor {name} has no parameter")))?;
-            let slot = moments
-                .entry(id)
-                .or_insert_with(|| (None, None, shape.to_vec()));
+            let slot = moments.entry(id).or_insert_with(|| SavedMoments {
+                m: None,
+                v: None,
+                shape: shape.to_vec(),
+            });
             match name.rsplit_once('.').map(|(_, leaf)| leaf) {
-                Some("moment_1") => slot.0 = Some(values),
-                Some("moment_2") => slot.1 = Some(values),
+                Some("moment_1") => slot.m = Some(values),
+                Some("moment_2") => slot.v = Some(values),
                 _ => {
                     return Err(record(format!(
                         "tensor {name} is not an Adam moment (another optimiser, or AMSGrad)"
@@ -311,7 +319,7 @@ impl FusedAdam {
             }
         }
         let mut adam = Self::default();
-        for (id, (m, v, shape)) in moments {
+        for (id, SavedMoments { m, v, shape }) in moments {
             let (Some(m), Some(v)) = (m, v) else {
                 return Err(record(format!("parameter {id} lacks one of its moments")));
             };
