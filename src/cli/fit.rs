@@ -190,16 +190,16 @@ fn summary(fitted: &Fitted, avatar: &Avatar, args: &FitArgs) -> String {
     } else {
         "below"
     };
-    let sleeves = match (r.sleeves_deg, r.reposed) {
-        (d, _) if d == 0.0 => "match the avatar's arms".to_string(),
-        (d, true) => format!(
-            "made {:.0} degrees {side} the avatar's arms; re-posed to its rest pose",
-            d.abs()
-        ),
-        (d, false) => format!(
-            "made {:.0} degrees {side} the avatar's arms; not re-posed (--no-repose)",
-            d.abs()
-        ),
+    let made = format!(
+        "made {:.0} degrees {side} the avatar's arms",
+        r.sleeves_deg.abs()
+    );
+    let sleeves = if r.sleeves_deg == 0.0 {
+        "match the avatar's arms".to_string()
+    } else if r.reposed {
+        format!("{made}; re-posed to its rest pose")
+    } else {
+        format!("{made}; not re-posed (--no-repose)")
     };
     format!(
         "fitted '{}' ({} vertices) onto avatar '{}' ({:.2} m tall)\n\

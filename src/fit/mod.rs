@@ -215,10 +215,13 @@ impl FitReport {
         let relaxed = self
             .inside_relaxed
             .map_or_else(|| "not relaxed".to_string(), |n| format!("{n} relaxed"));
-        let sleeves = match (self.sleeves_deg, self.reposed) {
-            (d, _) if d == 0.0 => String::new(),
-            (d, true) => format!("sleeves re-posed by {:.0} degrees, ", -d),
-            (d, false) => format!("sleeves {d:.0} degrees off the arms (not re-posed), "),
+        let d = self.sleeves_deg;
+        let sleeves = if d == 0.0 {
+            String::new()
+        } else if self.reposed {
+            format!("sleeves re-posed by {:.0} degrees, ", -d)
+        } else {
+            format!("sleeves {d:.0} degrees off the arms (not re-posed), ")
         };
         format!(
             "units {}{}, {}{sleeves}scale {:.3}, offset {}; vertices inside the body: {} as \

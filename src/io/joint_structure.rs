@@ -74,7 +74,7 @@ pub fn label_by_structure(shape: &RigShape<'_>) -> Result<Vec<Option<&'static st
     let lo = p.iter().map(|v| v.y).fold(f32::INFINITY, f32::min);
     let hi = p.iter().map(|v| v.y).fold(f32::NEG_INFINITY, f32::max);
     let height = hi - lo;
-    if !(height > 1e-6) {
+    if !height.is_finite() || height <= 1e-6 {
         return Err("the rest pose has no height (is the rig Y up?)".into());
     }
     let children = children_of(shape.parents);
