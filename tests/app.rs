@@ -478,6 +478,7 @@ impl TrainerLauncher for FakeLauncher {
             max_rollbacks: 3,
             dead_limit_pct: 90.0,
             lr_decay: (0.0, 1.0),
+            warmup_steps: 0,
             warnings: Vec::new(),
         };
         if let Ok(mut r) = self.requests.lock() {

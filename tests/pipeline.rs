@@ -477,7 +477,10 @@ fn cli_train_keeps_the_checkpoints_it_is_told_to() {
         ]
     };
     let (ok, log) = cli(&args("0"), dir.path());
-    assert!(!ok && log.contains("--keep-checkpoints 0 is outside"), "{log}");
+    assert!(
+        !ok && log.contains("--keep-checkpoints 0 is outside"),
+        "{log}"
+    );
     let (ok, log) = cli(&args("1"), dir.path());
     assert!(ok, "{log}");
     assert!(log.contains("keeping the newest 1 checkpoint(s)"), "{log}");
