@@ -81,8 +81,12 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     }
     if let Some(path) = args.markdown {
         let machine = machine_description();
+        let weights = args
+            .weights
+            .as_ref()
+            .map_or(String::new(), |w| format!(" --weights {}", w.display()));
         let text = format!(
-            "# Benchmarks\n\nMeasured with `neural-cloth bench --markdown {}` (release build).\n\nMachine: {machine}.\n\n{markdown}",
+            "# Benchmarks\n\nMeasured with `neural-cloth bench{weights} --markdown {}` (release build).\n\nMachine: {machine}.\n\n{markdown}",
             path.display()
         );
         neural_cloth::io::export::atomic::write_atomic(&path, text.as_bytes())?;
