@@ -27,6 +27,7 @@ pub mod joint_structure;
 mod joint_tables;
 pub mod obj;
 pub mod retarget;
+mod root_placement;
 pub mod scene_loader;
 pub mod units;
 

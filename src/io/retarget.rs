@@ -20,6 +20,7 @@ use super::bvh::Bvh;
 use super::gltf_avatar::short_list;
 use super::joint_map::{JointMap, JointMapping, MatchKind, map_joints};
 use super::joint_structure::RigShape;
+use super::root_placement::{RootPlacement, end_joints, lowest_end};
 use super::{IoError, check_fps};
 use crate::geometry::{Mat4, Quat, Vec3};
 use crate::scene::skeleton::rotation_of;
@@ -135,7 +136,7 @@ impl SourceMotion {
     }
 }
 
-fn translation_of(m: &Mat4) -> Vec3 {
+pub(super) fn translation_of(m: &Mat4) -> Vec3 {
     m.fixed_view::<3, 1>(0, 3).into_owned()
 }
 
@@ -202,35 +203,7 @@ pub fn retarget(
         }
         None => source,
     };
-    let by_structure: Vec<String> = (0..n)
-        .filter(|&a| mapping.how[a] == Some(MatchKind::Structure))
-        .filter_map(|a| {
-            Some(format!(
-                "{} <- {}",
-                skeleton.names[a],
-                source.names.get(map[a]?)?
-            ))
-        })
-        .collect();
-    if !by_structure.is_empty() {
-        warnings.push(format!(
-            "{} joints mapped by the skeletons' structure, their names not being recognised \
-             ({}); check them with inspect --avatar, or give a --joint-map",
-            by_structure.len(),
-            short_list(
-                &by_structure.iter().map(String::as_str).collect::<Vec<_>>(),
-                6
-            )
-        ));
-    }
-    let unmapped = mapping.unmapped(&skeleton.names);
-    if !unmapped.is_empty() {
-        warnings.push(format!(
-            "{} avatar joints keep their rest rotation: {}",
-            unmapped.len(),
-            short_list(&unmapped, 8)
-        ));
-    }
+    warnings.extend(mapping_warnings(&mapping, skeleton, source));
 
     // Avatar rest.
     let rest_pose = skeleton.rest_pose();
@@ -311,6 +284,48 @@ pub fn retarget(
     Ok((motion, warnings))
 }
 
+/// What retargeting tells about the mapping: the joints mapped by the skeletons' structure
+/// (to be checked), and the avatar joints left at their rest rotation.
+fn mapping_warnings(
+    mapping: &JointMapping,
+    skeleton: &Skeleton,
+    source: &SourceMotion,
+) -> Vec<String> {
+    let map = &mapping.source;
+    let mut warnings = Vec::new();
+    let by_structure: Vec<String> = (0..skeleton.len())
+        .filter(|&a| mapping.how[a] == Some(MatchKind::Structure))
+        .filter_map(|a| {
+            Some(format!(
+                "{} <- {}",
+                skeleton.names[a],
+                source.names.get(map[a]?)?
+            ))
+        })
+        .collect();
+    if !by_structure.is_empty() {
+        warnings.push(format!(
+            "{} joints mapped by the skeletons' structure, their names not being recognised \
+             ({}); check them with inspect --avatar, or give a --joint-map",
+            by_structure.len(),
+            short_list(
+                &by_structure.iter().map(String::as_str).collect::<Vec<_>>(),
+                6
+            )
+        ));
+    }
+    let unmapped = mapping.unmapped(&skeleton.names);
+    if !unmapped.is_empty() {
+        warnings.push(format!(
+            "{} avatar joints keep their rest rotation: {}",
+            unmapped.len(),
+            short_list(&unmapped, 8)
+        ));
+    }
+
+    warnings
+}
+
 /// The joint mapping [`retarget`] uses from `source` onto `skeleton`: [`map_joints`] on the
 /// names with the user's `joint_map`, then, when essential joints are left unmapped,
 /// [`JointMapping::fill_by_structure`] on both rigs' rest poses (and the motion's frames).
@@ -342,32 +357,6 @@ pub fn joint_mapping(
         );
     }
     Ok(mapping)
-}
-
-/// Per joint, whether it has no children (feet, hands, head, ... ends).
-fn end_joints(parents: &[Option<usize>]) -> Vec<bool> {
-    let mut end = vec![true; parents.len()];
-    for p in parents.iter().flatten() {
-        if let Some(e) = end.get_mut(*p) {
-            *e = false;
-        }
-    }
-    end
-}
-
-/// The lowest height of the end joints among `points` (of every point when no end joint
-/// is marked).
-fn lowest_end(points: &[Vec3], ends: &[bool]) -> f32 {
-    let lowest = |all: bool| {
-        points
-            .iter()
-            .zip(ends.iter().chain(std::iter::repeat(&false)))
-            .filter(|(_, e)| all || **e)
-            .map(|(p, _)| p.y)
-            .fold(f32::INFINITY, f32::min)
-    };
-    let y = lowest(false);
-    if y.is_finite() { y } else { lowest(true) }
 }
 
 /// The avatar joint whose motion joint carries the root translation: the mapped canonical
@@ -417,116 +406,6 @@ fn align_rest(
         }
         if let Some(turn) = Quat::rotation_between(&dir_a, &dir_b) {
             rest_rot[a] = turn * rest_rot[a];
-        }
-    }
-}
-
-/// Where the avatar's hips go in each frame.
-struct RootPlacement {
-    hips_a: usize,
-    hips_b: usize,
-    scale: f32,
-    ground_a: f32,
-    ground_b: f32,
-    offset: Vec3,
-    under_root0: Option<usize>,
-    root_linear_inv: Option<crate::geometry::Mat3>,
-}
-
-impl RootPlacement {
-    fn new(
-        source: &SourceMotion,
-        skeleton: &Skeleton,
-        hips_a: usize,
-        hips_b: usize,
-        scale: f32,
-        rest_pos: &[Vec3],
-        options: &RetargetOptions,
-    ) -> Self {
-        // Ground = lowest end joint over the whole motion (a root joint at the floor under
-        // the hips is no foot).
-        let ends_b = end_joints(&source.parents);
-        let ground_b = source
-            .frames
-            .iter()
-            .map(|w| lowest_end(&w.iter().map(|x| x.1).collect::<Vec<_>>(), &ends_b))
-            .fold(f32::INFINITY, f32::min);
-        let ground_a = lowest_end(rest_pos, &end_joints(&skeleton.parents));
-        let start_b = source
-            .frames
-            .first()
-            .and_then(|w| w.get(hips_b))
-            .map(|(_, p)| *p)
-            .unwrap_or_else(Vec3::zeros);
-        let offset = if options.recentre {
-            Vec3::new(
-                rest_pos[hips_a].x - scale * start_b.x,
-                0.0,
-                rest_pos[hips_a].z - scale * start_b.z,
-            )
-        } else {
-            Vec3::zeros()
-        };
-        let mut under_root0 = Some(hips_a);
-        while let Some(j) = under_root0 {
-            if j == 0 {
-                break;
-            }
-            under_root0 = skeleton.parents[j];
-        }
-        Self {
-            hips_a,
-            hips_b,
-            scale,
-            ground_a,
-            ground_b,
-            offset,
-            under_root0,
-            root_linear_inv: skeleton.world_from_root_parent[0]
-                .fixed_view::<3, 3>(0, 0)
-                .into_owned()
-                .try_inverse(),
-        }
-    }
-
-    /// Sets `pose`'s root translation so the avatar's hips follow the motion's in frame `w`.
-    fn place(&self, skeleton: &Skeleton, w: &[(Quat, Vec3)], pose: &mut Pose) {
-        let (Some(_), Some(inv), Some((_, p_b))) =
-            (self.under_root0, self.root_linear_inv, w.get(self.hips_b))
-        else {
-            return;
-        };
-        let s = self.scale;
-        let target = Vec3::new(
-            s * p_b.x,
-            self.ground_a + s * (p_b.y - self.ground_b),
-            s * p_b.z,
-        ) + self.offset;
-        let current = translation_of(&skeleton.world_from_joint(pose)[self.hips_a]);
-        let shift = inv * (target - current);
-        if shift.iter().all(|v| v.is_finite()) {
-            pose.root_translation += shift;
-        }
-    }
-
-    /// Moves every frame up or down together so that the lowest end joint of the avatar over
-    /// the whole motion is at its rest ground: the motion's own ground, scaled by hip
-    /// heights, leaves the feet above or below the floor when the rigs' legs differ (a CMU
-    /// rest pose's legs are splayed, its hips joint sits high above the thighs).
-    fn ground(&self, skeleton: &Skeleton, frames: &mut [Pose]) {
-        let (Some(_), Some(inv)) = (self.under_root0, self.root_linear_inv) else {
-            return;
-        };
-        let ends = end_joints(&skeleton.parents);
-        let lowest = frames
-            .iter()
-            .map(|pose| lowest_end(&skeleton.joint_positions(pose), &ends))
-            .fold(f32::INFINITY, f32::min);
-        let shift = inv * Vec3::new(0.0, self.ground_a - lowest, 0.0);
-        if shift.iter().all(|v| v.is_finite()) {
-            for pose in frames {
-                pose.root_translation += shift;
-            }
         }
     }
 }
