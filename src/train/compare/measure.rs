@@ -279,7 +279,7 @@ pub struct MotionMeasures {
     /// Hem radius (`None` for garments that end above the hips).
     pub hem: Option<HemComparison>,
     /// The distance and both swings split into rigid slip and shape (`None` in checks
-    /// recorded before it was measured).
+    /// recorded before it was measured, and when a frame is not finite).
     #[serde(default)]
     pub rigid: Option<super::RigidSplit>,
 }
@@ -353,12 +353,12 @@ pub fn measure_motion(
             simulator: amplitude(seq.simulator, seq.simulator_static)?,
         },
         hem,
-        rigid: Some(super::rigid_split(
+        rigid: super::rigid_split(
             seq.network,
             seq.network_static,
             seq.simulator,
             seq.simulator_static,
-        )?),
+        )?,
     })
 }
 

@@ -24,8 +24,8 @@ pub struct RigidFit {
 }
 
 /// The best rigid motion (rotation about the centroid, then translation) taking `from` onto
-/// `to`, both the same vertices in the same order. `None` when the counts differ or a frame
-/// is empty. Degenerate frames (all vertices on a line or a point) get the best motion the
+/// `to`, both the same vertices in the same order. `None` when the counts differ, a frame
+/// is empty or holds a non-finite coordinate. Degenerate frames (all vertices on a line or a point) get the best motion the
 /// SVD finds, which may not be unique; the residual is still the distance it leaves.
 pub fn best_rigid_fit(from: &[Vec3], to: &[Vec3]) -> Option<RigidFit> {
     if from.len() != to.len() || from.is_empty() {
@@ -39,7 +39,12 @@ pub fn best_rigid_fit(from: &[Vec3], to: &[Vec3]) -> Option<RigidFit> {
     for (a, b) in from.iter().zip(to) {
         h += (f64v(a) - ca) * (f64v(b) - cb).transpose();
     }
-    let svd = h.svd(true, true);
+    // A non-finite vertex (a diverged network or simulation) has no rigid fit; nalgebra's
+    // 3x3 SVD would iterate on NaN without end.
+    if !(h.iter().all(|v| v.is_finite()) && ca.iter().chain(cb.iter()).all(|v| v.is_finite())) {
+        return None;
+    }
+    let svd = h.try_svd(true, true, f64::EPSILON, 1000)?;
     let (u, v_t) = (svd.u?, svd.v_t?);
     let mut d = Matrix3::identity();
     if (v_t.transpose() * u.transpose()).determinant() < 0.0 {
@@ -75,48 +80,60 @@ pub struct RigidSplit {
     pub simulator_shape_swing_mm: f64,
 }
 
-/// Mean over frames of `fit(reference[k] -> candidate[k])`, both parts in mm.
-fn mean_fit(reference: &[Vec<Vec3>], candidate: &[Vec<Vec3>]) -> Result<(f64, f64), TrainError> {
-    if reference.len() != candidate.len() || reference.is_empty() {
+/// Mean over frames of `fit(reference[k] -> candidate[k])`, both parts in mm; `None` when a
+/// frame has no fit (a non-finite coordinate).
+fn mean_fit(
+    reference: &[Vec<Vec3>],
+    candidate: &[Vec<Vec3>],
+) -> Result<Option<(f64, f64)>, TrainError> {
+    let sizes_differ = reference.len() != candidate.len()
+        || reference.is_empty()
+        || reference
+            .iter()
+            .zip(candidate)
+            .any(|(r, c)| r.len() != c.len());
+    if sizes_differ {
         return Err(TrainError::Data(format!(
-            "rigid split of {} against {} frames",
+            "rigid split of {} against {} frames of other sizes",
             candidate.len(),
             reference.len()
         )));
     }
     let (mut residual, mut moved) = (0.0, 0.0);
     for (r, c) in reference.iter().zip(candidate) {
-        let fit = best_rigid_fit(r, c).ok_or_else(|| {
-            TrainError::Data(format!(
-                "rigid split of frames with {} and {} vertices",
-                c.len(),
-                r.len()
-            ))
-        })?;
+        let Some(fit) = best_rigid_fit(r, c) else {
+            return Ok(None);
+        };
         residual += fit.residual_m;
         moved += fit.moved_m;
     }
     let n = reference.len() as f64;
-    Ok((1000.0 * residual / n, 1000.0 * moved / n))
+    Ok(Some((1000.0 * residual / n, 1000.0 * moved / n)))
 }
 
-/// Splits the network-to-simulator distance and both swings into rigid slip and shape.
+/// Splits the network-to-simulator distance and both swings into rigid slip and shape;
+/// `None` when a frame holds a non-finite coordinate (the distances say so already).
 pub fn rigid_split(
     network: &[Vec<Vec3>],
     network_static: &[Vec<Vec3>],
     simulator: &[Vec<Vec3>],
     simulator_static: &[Vec<Vec3>],
-) -> Result<RigidSplit, TrainError> {
-    let (shape_distance_mm, _) = mean_fit(simulator, network)?;
-    let (network_shape_swing_mm, network_slip_mm) = mean_fit(network_static, network)?;
-    let (simulator_shape_swing_mm, simulator_slip_mm) = mean_fit(simulator_static, simulator)?;
-    Ok(RigidSplit {
+) -> Result<Option<RigidSplit>, TrainError> {
+    let parts = (
+        mean_fit(simulator, network)?,
+        mean_fit(network_static, network)?,
+        mean_fit(simulator_static, simulator)?,
+    );
+    let (Some((shape_distance_mm, _)), Some(net), Some(sim)) = parts else {
+        return Ok(None);
+    };
+    Ok(Some(RigidSplit {
         shape_distance_mm,
-        network_slip_mm,
-        network_shape_swing_mm,
-        simulator_slip_mm,
-        simulator_shape_swing_mm,
-    })
+        network_slip_mm: net.1,
+        network_shape_swing_mm: net.0,
+        simulator_slip_mm: sim.1,
+        simulator_shape_swing_mm: sim.0,
+    }))
 }
 
 #[cfg(test)]
@@ -172,6 +189,12 @@ mod tests {
         let fit = best_rigid_fit(&point, &point).unwrap();
         assert!(fit.residual_m.is_finite() && fit.moved_m.is_finite());
         assert!(best_rigid_fit(&a, &a[..3]).is_none());
+        // Regression: a NaN vertex made nalgebra's 3x3 SVD loop for ever; now there is no fit.
+        let mut broken = a.clone();
+        broken[3].y = f32::NAN;
+        assert!(best_rigid_fit(&a, &broken).is_none());
+        broken[3].y = f32::INFINITY;
+        assert!(best_rigid_fit(&broken, &a).is_none());
         assert!(best_rigid_fit(&[], &[]).is_none());
     }
 
@@ -188,10 +211,14 @@ mod tests {
                     .collect()
             })
             .collect();
-        let split = rigid_split(&net, &qs, &sim, &qs).unwrap();
+        let split = rigid_split(&net, &qs, &sim, &qs).unwrap().unwrap();
         assert!(split.simulator_shape_swing_mm < 1e-3, "{split:?}");
         assert!(split.simulator_slip_mm > 5.0, "{split:?}");
         assert!(split.network_shape_swing_mm > 1e-3, "{split:?}");
         assert!(rigid_split(&net, &qs, &sim, &qs[..2]).is_err());
+        // A diverged network: no split, and no error (its distances already say NaN).
+        let mut diverged = net.clone();
+        diverged[1][0].x = f32::NAN;
+        assert_eq!(rigid_split(&diverged, &qs, &sim, &qs).unwrap(), None);
     }
 }
