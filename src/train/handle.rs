@@ -257,6 +257,9 @@ impl TrainerHandle {
                 let result = prepare().and_then(|(mut session, config)| {
                     run_loop(&mut session, config, &cmd_rx, &stop_flag, &emit)
                 });
+                // The session is dropped: give the buffers the allocator kept for the next
+                // step back to the system (the app lives on after a run).
+                super::alloc::release_freed_buffers();
                 emit.send(TrainEvent::Finished(result.map_err(|e| e.to_string())));
             })?;
         Ok(Self {
