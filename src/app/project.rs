@@ -200,6 +200,9 @@ impl ProjectFile {
             .parse()
             .map_err(|e: toml::de::Error| parse(e.to_string()))?;
         let version = match table.get("version") {
+            // Version 1 wrote every key but let a hand-edited file leave any out: its layout
+            // (fabric and effects at the top, the scene's sources as plain strings) tells.
+            None if super::project_v1::looks_like_v1(&table) => Some(1),
             None => Some(PROJECT_VERSION),
             Some(v) => v.as_integer().and_then(|v| u32::try_from(v).ok()),
         };

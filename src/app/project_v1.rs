@@ -43,6 +43,23 @@ struct ProjectFileV1 {
     view: ViewSettings,
 }
 
+/// Whether a project table without a `version` key has the first layout: `[fabric]` or
+/// `[effects]` at the top, or a `[scene]` naming its avatar, garment or motions as plain paths.
+pub fn looks_like_v1(table: &toml::Table) -> bool {
+    if table.contains_key("fabric") || table.contains_key("effects") {
+        return true;
+    }
+    let Some(scene) = table.get("scene").and_then(toml::Value::as_table) else {
+        return false;
+    };
+    let is_path = |key: &str| scene.get(key).is_some_and(toml::Value::is_str);
+    let motion_paths = scene
+        .get("motions")
+        .and_then(toml::Value::as_array)
+        .is_some_and(|m| m.iter().any(toml::Value::is_str));
+    is_path("avatar") || is_path("garment") || motion_paths || scene.contains_key("fabric_preset")
+}
+
 /// Reads a version-1 project (paths as written) in the current layout, describing the scene
 /// the app of that version showed: the built-in scene with the named files in place of its
 /// avatar and garment; a loaded avatar brought its own animations (all training) and replaced
@@ -239,5 +256,43 @@ w = 1.5
         std::fs::write(&file, "version = 1\n[scene]\nfabrik = 1\n").unwrap();
         let err = ProjectFile::open(&file).unwrap_err().to_string();
         assert!(err.contains("fabrik") && err.contains("version 1"), "{err}");
+    }
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+
+    fn table(text: &str) -> toml::Table {
+        text.parse().unwrap()
+    }
+
+    #[test]
+    fn a_first_layout_is_told_without_its_version_key() {
+        assert!(looks_like_v1(&table("[fabric]\ndensity_kg_per_m2 = 0.5\n")));
+        assert!(looks_like_v1(&table("[effects]\ndynamics = false\n")));
+        assert!(looks_like_v1(&table("[scene]\ngarment = \"shirt.obj\"\n")));
+        assert!(looks_like_v1(&table("[scene]\nmotions = [\"walk.bvh\"]\n")));
+        // The current layout: sources are tables, fabric and effects live in the scene.
+        assert!(!looks_like_v1(&table(
+            "[scene]\nname = \"s\"\n[scene.garment]\nbuiltin = \"skirt\"\n[scene.effects]\ndynamics = true\n"
+        )));
+        assert!(!looks_like_v1(&table("[view]\nw = 1.0\n")));
+    }
+
+    /// Review: a version-1 project without its `version` key was read as version 2 and refused
+    /// with an unknown-field message.
+    #[test]
+    fn a_version_1_project_without_its_version_key_opens() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.toml");
+        std::fs::write(
+            &path,
+            "[scene]\ngarment = \"shirt.obj\"\n[effects]\ndynamics = false\n[training]\nfps = 60.0\n",
+        )
+        .unwrap();
+        let project = ProjectFile::open(&path).unwrap();
+        assert!(!project.scene.effects.dynamics);
+        assert!(matches!(project.scene.garment, GarmentSource::File { .. }));
     }
 }
