@@ -106,9 +106,9 @@ pub struct TrainConfig {
     pub fit_check: bool,
     /// Trailing frames of each window that get the per-frame loss (inertia from the network's
     /// own two previous frames, plus the static terms): 1 = the paper's (the last frame only);
-    /// more gives the dynamics that build up over several frames more signal per step, at
-    /// about that many times the physics cost. 1..=16 and at most the window's frames
-    /// minus 2; default 1.
+    /// more gives the dynamics that build up over several frames more signal per step, and
+    /// each step that much more physics (measured: no better at equal steps, docs/TRAINING.md).
+    /// 1..=16 and at most the window's frames minus 2; default 1.
     pub loss_frames: usize,
     /// Steps over which the learning rate rises linearly to its value at the start of a run
     /// (Adam's first steps move every weight by about the rate whatever its gradient, which

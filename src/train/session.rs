@@ -165,12 +165,12 @@ impl NeuralSession {
     /// (`[(K - first)·B, V, 3]`, the order of [`stack_frames`]): the skinned template, where
     /// the reference simulator holds pinned vertices too. `None` when nothing is pinned or the
     /// scene's pinning effect is off.
-    fn pin_target(&self, batch: &Batch, first: usize) -> Option<Tensor<3>> {
+    fn pin_target(&self, batch: &Batch, blended: &Tensor<4>, first: usize) -> Option<Tensor<3>> {
         self.terms.tensors().pinned.as_ref()?;
         let (b, v, k) = (batch.size, self.garment.vertex_count(), batch.predicted);
         let frames = k.saturating_sub(first);
-        let blended = self
-            .tensor4(batch.blended.clone(), [b, k, v, 12])
+        let blended = blended
+            .clone()
             .narrow(1, first, frames)
             .swap_dims(0, 1)
             .reshape([frames * b, 1, v, 12]);
@@ -215,7 +215,9 @@ impl NeuralSession {
     /// Posed garment `[B, K, V, 3]` of the last `K = batch.predicted` frames of `batch` whose
     /// first `still` windows are still, with `augment` samples (the last ones) given another
     /// sample's dynamic code and detached encoders.
-    fn predict(&mut self, batch: &Batch, still: usize, augment: usize) -> Tensor<4> {
+    /// Also returns the batch's blended skinning matrices as a tensor (`[B, K, V, 12]`), for
+    /// the pinning targets.
+    fn predict(&mut self, batch: &Batch, still: usize, augment: usize) -> (Tensor<4>, Tensor<4>) {
         let (b, t, k) = (batch.size, batch.frames, batch.predicted);
         let j = self.train.input_joints;
         let statics = self.tensor4(batch.static_desc.clone(), [b, t, j, 9]);
@@ -241,7 +243,8 @@ impl NeuralSession {
         };
         let v = self.garment.vertex_count();
         let blended = self.tensor4(batch.blended.clone(), [b, k, v, 12]);
-        super::losses::skin_blended(self.lbs.rest(offsets), blended)
+        let x = super::losses::skin_blended(self.lbs.rest(offsets), blended.clone());
+        (x, blended)
     }
 
     /// Body contacts (when collision is on) and static losses of `x_t`, the predicted frames
@@ -250,6 +253,7 @@ impl NeuralSession {
         &self,
         data: &Dataset,
         batch: &Batch,
+        blended: &Tensor<4>,
         first: usize,
         x_t: &Tensor<3>,
     ) -> Result<(Option<Contacts>, LossTerms), TrainError> {
@@ -260,7 +264,7 @@ impl NeuralSession {
         };
         let mut losses = self.terms.static_losses_with(x_t, contacts.as_ref())?;
         if let Some(pinning) = self
-            .pin_target(batch, first)
+            .pin_target(batch, blended, first)
             .and_then(|target| self.terms.pinning(x_t, &target))
         {
             losses.push(crate::physics::Term::Pinning, pinning);
@@ -369,11 +373,11 @@ impl Session for NeuralSession {
             predicted,
             &self.garment.skin,
         );
-        let x = self.predict(&batch, still, augment);
+        let (x, blended) = self.predict(&batch, still, augment);
         // Every loss frame k in 2..K, stacked frame by frame: its static losses, and its
         // inertia from the network's own two previous frames.
         let x_t = stack_frames(&x, 2, predicted, b);
-        let (contacts, losses) = self.static_losses(&self.train, &batch, 2, &x_t)?;
+        let (contacts, losses) = self.static_losses(&self.train, &batch, &blended, 2, &x_t)?;
         let mut total = losses
             .total()
             .unwrap_or_else(|| Tensor::zeros([1], &self.device));
@@ -442,14 +446,15 @@ impl Session for NeuralSession {
             return Err(TrainError::NoValidationFrames);
         }
         let batch = data.batch(&windows, self.window_frames(), 3, &self.garment.skin);
-        let x = self.predict(&batch, 0, 0).detach();
+        let (x, blended) = self.predict(&batch, 0, 0);
+        let x = x.detach();
         let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
         let data = if self.validation.is_empty() {
             &self.train
         } else {
             &self.validation
         };
-        let (contacts, losses) = self.static_losses(data, &batch, 2, &x_t)?;
+        let (contacts, losses) = self.static_losses(data, &batch, &blended, 2, &x_t)?;
         let mut loss = losses
             .total()
             .map(|t| t.into_scalar::<f64>())
