@@ -753,17 +753,28 @@ fn skirt_losses(edit: impl Fn(&mut neural_cloth::scene::config::Effects)) -> Vec
 #[test]
 fn pinning_and_every_other_effect_act_in_training() {
     use neural_cloth::scene::config::Effects;
-    let all = skirt_losses(|_| {});
+    let all = skirt_losses(|e| e.friction = true);
     type Toggle = (&'static str, fn(&mut Effects));
-    let toggles: [Toggle; 5] = [
+    // Friction needs collision and dynamics: turning either off turns it off too.
+    let toggles: [Toggle; 6] = [
         ("pinning", |e| e.pinning = false),
         ("gravity", |e| e.gravity = false),
         ("bending", |e| e.bending = false),
-        ("collision", |e| e.collision = false),
-        ("dynamics", |e| e.dynamics = false),
+        ("collision", |e| {
+            e.collision = false;
+            e.friction = false;
+        }),
+        ("dynamics", |e| {
+            e.dynamics = false;
+            e.friction = false;
+        }),
+        ("friction", |e| e.friction = false),
     ];
     for (name, toggle) in toggles {
-        let without = skirt_losses(toggle);
+        let without = skirt_losses(|e| {
+            e.friction = true;
+            toggle(e);
+        });
         assert_ne!(
             all, without,
             "turning {name} off changed nothing in training"

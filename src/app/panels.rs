@@ -277,6 +277,12 @@ impl NeuralClothApp {
                     changed |= ui.checkbox(&mut e.pinning, "pinning").changed();
                     if changed {
                         // Dynamics changes the network layout of the preview.
+                changed |= ui
+                    .add(
+                        egui::Slider::new(&mut f.friction_coefficient, 0.0..=2.0)
+                            .text("friction μ (with the friction effect)"),
+                    )
+                    .changed();
                         self.state.preview.reset_scene();
                         self.state.scene.revision += 1;
                     }
@@ -297,6 +303,11 @@ impl NeuralClothApp {
             });
     }
 
+                    let can_rub = e.collision && e.dynamics;
+                    changed |= ui
+                        .add_enabled(can_rub, egui::Checkbox::new(&mut e.friction, "friction"))
+                        .on_disabled_hover_text("friction needs collision and dynamics")
+                        .changed();
     /// The status line: the latest message, coloured by severity.
     pub fn status_ui(&mut self, ui: &mut egui::Ui) {
         let animating = self.state.playback.playing || self.state.training.state().is_active();

@@ -128,6 +128,7 @@ impl FrameSource for SimulatorSource<'_> {
                 body,
                 pin_targets,
                 skinned: if quasi_static { skinned } else { None },
+                body_before: None,
             })
             .map_err(|e| BakeError::Source(e.to_string()))?;
         self.positions = x;

@@ -104,6 +104,9 @@ pub struct Contacts {
     pub normals: Tensor<3>,
     /// Signed distances at the queried positions, `B·V` values in metres (CPU copy).
     pub distances_m: Vec<f32>,
+    /// Nearest body vertex index per garment vertex, `B·V` values (CPU copy; friction reads
+    /// the body's motion at these vertices).
+    pub indices: Vec<u32>,
 }
 
 impl Contacts {
@@ -128,18 +131,21 @@ impl Contacts {
         let mut points = vec![0.0f32; x_flat.len()];
         let mut normals = vec![0.0f32; x_flat.len()];
         let mut distances_m = vec![0.0f32; x_flat.len() / 3];
+        let mut indices = vec![0u32; x_flat.len() / 3];
         points
             .par_chunks_mut(3 * QUERY_CHUNK)
             .zip(normals.par_chunks_mut(3 * QUERY_CHUNK))
             .zip(distances_m.par_chunks_mut(QUERY_CHUNK))
+            .zip(indices.par_chunks_mut(QUERY_CHUNK))
             .enumerate()
-            .for_each(|(chunk, ((points, normals), distances))| {
+            .for_each(|(chunk, (((points, normals), distances), nearest))| {
                 let first = chunk * QUERY_CHUNK;
-                for (j, d) in distances.iter_mut().enumerate() {
+                for (j, (d, nearest)) in distances.iter_mut().zip(nearest).enumerate() {
                     let k = first + j;
                     let body = &bodies.bodies[k / vertices.max(1)];
                     let q = Vec3::new(x_flat[3 * k], x_flat[3 * k + 1], x_flat[3 * k + 2]);
                     let i = body.nearest(&q);
+                    *nearest = i as u32;
                     let (p, n) = (body.positions[i], body.normals[i]);
                     points[3 * j..3 * j + 3].copy_from_slice(&[p.x, p.y, p.z]);
                     normals[3 * j..3 * j + 3].copy_from_slice(&[n.x, n.y, n.z]);
@@ -153,6 +159,7 @@ impl Contacts {
             points: upload(points),
             normals: upload(normals),
             distances_m,
+            indices,
         })
     }
 

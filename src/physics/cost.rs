@@ -86,7 +86,7 @@ fn reference_contacts(
 ) -> Result<Contacts, PhysicsError> {
     let [b, v, _] = x.dims();
     let flat = super::tensors::read_f32(x.clone().detach())?;
-    let found: Vec<[f32; 7]> = flat
+    let found: Vec<([f32; 7], u32)> = flat
         .par_chunks_exact(3)
         .enumerate()
         .map(|(k, q)| {
@@ -96,21 +96,22 @@ fn reference_contacts(
                 .nearest(&q)
                 .map_or(0, |(i, _)| i as usize);
             let (p, n) = (body.positions()[i], body.normals()[i]);
-            [p.x, p.y, p.z, n.x, n.y, n.z, n.dot(&(q - p))]
+            ([p.x, p.y, p.z, n.x, n.y, n.z, n.dot(&(q - p))], i as u32)
         })
         .collect();
     let device = x.device();
     let column = |range: std::ops::Range<usize>| -> Tensor<3> {
         let flat: Vec<f32> = found
             .iter()
-            .flat_map(|f| f[range.clone()].iter().copied())
+            .flat_map(|(f, _)| f[range.clone()].iter().copied())
             .collect();
         Tensor::from_data(TensorData::new(flat, [b, v, 3]), (&device, dtype))
     };
     Ok(Contacts {
         points: column(0..3),
         normals: column(3..6),
-        distances_m: found.iter().map(|f| f[6]).collect(),
+        distances_m: found.iter().map(|(f, _)| f[6]).collect(),
+        indices: found.iter().map(|(_, i)| *i).collect(),
     })
 }
 
@@ -174,6 +175,7 @@ pub fn measure_term_costs(
         collision: true,
         dynamics: true,
         pinning: true,
+        friction: true,
     };
     let terms_of = |model: ClothModel| {
         let f = FabricParams {
@@ -337,6 +339,17 @@ pub fn measure_term_costs(
     add(
         "pinning",
         &|x| bw.pinning(x, &prev1).ok_or(PhysicsError::MissingBody),
+        None,
+    )?;
+    let friction = bw
+        .friction_contacts(&contacts, &bodies, &bodies, &[])?
+        .ok_or(PhysicsError::MissingBody)?;
+    add(
+        "friction (contacts given)",
+        &|x| {
+            bw.friction(x, &prev1, &friction)
+                .ok_or(PhysicsError::MissingBody)
+        },
         None,
     )?;
     let reference_bw = bw.clone().with_fused(false);

@@ -1,6 +1,7 @@
 //! Metrics of paper §4.2, computed by the same tensor code as the losses: in-plane deformation
 //! (edge elongation and strain, Baraff-Witkin stretch/shear, Green strain), mean dihedral
-//! error, percentage of vertices inside the body, gravity potential and inertia.
+//! error, percentage of vertices inside the body, gravity potential and inertia; with the body's
+//! motion, the cloth's slip over the skin and the friction dissipation.
 //!
 //! They are pure functions of meshes: [`PhysicsTerms::metrics`] takes a `[B, V, 3]` batch (e.g.
 //! network output) and [`sequence_metrics`] any sequence of garment frames.
@@ -16,6 +17,7 @@ use crate::geometry::Vec3;
 
 use super::collision::{self, BodyBatch, Contacts, PosedBody};
 use super::energies;
+use super::friction::{self, FrictionContacts};
 use super::paper_metrics;
 use super::tensors::{per_sample, positions_tensor, read_f32, read_f64};
 use super::{PhysicsError, PhysicsTerms};
@@ -55,6 +57,15 @@ pub struct ClothMetrics {
     /// [`super::paper_metrics`]).
     #[serde(default)]
     pub paper_stretch: f64,
+    /// Friction dissipation of the step (see [`super::friction`]), joules, when the history
+    /// holds friction contacts and the friction effect is on.
+    #[serde(default)]
+    pub friction_j: Option<f64>,
+    /// Mean tangential slip over the body of the vertices in contact, metres per frame, when
+    /// the history holds friction contacts (whatever the effects: how far the cloth slides
+    /// over the skin).
+    #[serde(default)]
+    pub slip_m: Option<f64>,
 }
 
 /// Two previous frames and the time step, for the inertia metric.
@@ -66,6 +77,9 @@ pub struct History {
     pub x_t2: Tensor<3>,
     /// Time step in seconds.
     pub dt_secs: f32,
+    /// Contacts of `x` with the body's motion since `x_{t-1}`, for the friction and slip
+    /// metrics (None: not measured).
+    pub friction: Option<FrictionContacts>,
 }
 
 impl PhysicsTerms {
@@ -146,6 +160,12 @@ impl PhysicsTerms {
                 rt,
                 rest.total_mass_kg,
             ))?);
+            if let Some(fc) = h.friction.as_ref().filter(|f| f.weight.dims()[0] == b) {
+                m.slip_m = friction::mean_slip_m(&x, &h.x_t1, fc)?;
+                if self.friction_on() {
+                    m.friction_j = Some(mean(friction::friction(&x, &h.x_t1, fc))?);
+                }
+            }
         }
         Ok(m)
     }
@@ -191,13 +211,30 @@ pub fn sequence_metrics(
                     .get((k - start) * v..(k - start + 1) * v)
                     .map(<[f32]>::to_vec)
                     .unwrap_or_default(),
+                indices: c
+                    .indices
+                    .get((k - start) * v..(k - start + 1) * v)
+                    .map(<[u32]>::to_vec)
+                    .unwrap_or_default(),
             });
             let history = if k >= 2 {
                 let prev = |i: usize| positions_tensor(&[frames[i].as_slice()], &device, dtype);
+                let friction = match (&ck, bodies) {
+                    (Some(c), Some(b)) => Some(FrictionContacts::new(
+                        c,
+                        &BodyBatch::new(vec![b[k].clone()]),
+                        &BodyBatch::new(vec![b[k - 1].clone()]),
+                        &[],
+                        terms.rest(),
+                        terms.fabric(),
+                    )?),
+                    _ => None,
+                };
                 Some(History {
                     x_t1: prev(k - 1)?,
                     x_t2: prev(k - 2)?,
                     dt_secs,
+                    friction,
                 })
             } else {
                 None
@@ -242,6 +279,7 @@ mod tests {
             collision: false,
             dynamics: false,
             pinning: false,
+            friction: false,
         };
         let terms = PhysicsTerms::from_rest(
             Arc::new(rest),

@@ -14,6 +14,7 @@ use crate::scene::Garment;
 
 use super::collision::{self, BodyBatch, Contacts};
 use super::energies;
+use super::friction::FrictionContacts;
 use super::fused::surrogate::{HostPositions, surrogate};
 use super::fused::{self, HostContacts, Kernel, ScratchPool};
 use super::rest::GarmentRest;
@@ -37,6 +38,8 @@ pub enum Term {
     Pinning,
     /// Inertia.
     Inertia,
+    /// Cloth-body friction (dissipation of the step's slip over the body).
+    Friction,
 }
 
 impl Term {
@@ -50,6 +53,7 @@ impl Term {
             Term::Gravity => "gravity",
             Term::Pinning => "pinning",
             Term::Inertia => "inertia",
+            Term::Friction => "friction",
         }
     }
 }
@@ -409,6 +413,41 @@ impl PhysicsTerms {
         self.effects
             .dynamics
             .then(|| energies::inertia(x_t, x_t1, x_t2, &self.tensors, dt_secs).mean())
+    }
+
+    /// True when friction acts: the friction effect with collision and dynamics (friction
+    /// needs contacts and a previous frame).
+    pub fn friction_on(&self) -> bool {
+        let e = &self.effects;
+        e.friction && e.collision && e.dynamics
+    }
+
+    /// The friction inputs of `contacts` (queried at the end of the step against `now`;
+    /// `before` holds the bodies at its start, `active` the rows friction acts on, empty for
+    /// all). None when friction is off.
+    pub fn friction_contacts(
+        &self,
+        contacts: &Contacts,
+        now: &BodyBatch,
+        before: &BodyBatch,
+        active: &[bool],
+    ) -> Result<Option<FrictionContacts>, PhysicsError> {
+        if !self.friction_on() {
+            return Ok(None);
+        }
+        FrictionContacts::new(contacts, now, before, active, &self.rest, &self.fabric).map(Some)
+    }
+
+    /// Friction loss (batch mean) of `x_t` given the previous frame `x_t1` (both `[B, V, 3]`;
+    /// gradients reach only `x_t`). None when friction is off.
+    pub fn friction(
+        &self,
+        x_t: &Tensor<3>,
+        x_t1: &Tensor<3>,
+        fc: &FrictionContacts,
+    ) -> Option<Tensor<1>> {
+        self.friction_on()
+            .then(|| super::friction::friction(x_t, x_t1, fc).mean())
     }
 
     /// Pinning loss (batch mean) pulling pinned vertices of `x` to the same rows of `target`

@@ -197,10 +197,12 @@ fn step_inputs(scene: &Scene, poses: &[Pose]) -> Result<(Vec<StepInput>, f64), R
         let quasi_static = !scene.effects.dynamics;
         let skinned =
             (pin || quasi_static).then(|| scene.garment.pose_vertices(&scene.avatar, pose));
+        let body_before = inputs.last().and_then(|i: &StepInput| i.body.clone());
         inputs.push(StepInput {
             body,
             pin_targets: if pin { skinned.clone() } else { None },
             skinned: if quasi_static { skinned } else { None },
+            body_before,
         });
     }
     Ok((

@@ -243,6 +243,7 @@ fn reference_spin(
             body,
             pin_targets: if pinned { skinned.clone() } else { None },
             skinned: if quasi_static { skinned } else { None },
+            body_before: None,
         })
     };
     let settle = input(first)?;

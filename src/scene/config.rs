@@ -90,6 +90,11 @@ pub struct Effects {
     pub dynamics: bool,
     /// Pinned vertices follow the skinned garment exactly (e.g. a waistband). Default false.
     pub pinning: bool,
+    /// Coulomb friction between cloth and body: vertices at the body resist sliding over it
+    /// (a dissipation term on their motion relative to the body, see
+    /// `crate::physics::friction`). Needs `collision` and `dynamics`. Default false (the
+    /// paper's cloth is frictionless).
+    pub friction: bool,
 }
 
 impl Default for Effects {
@@ -100,6 +105,7 @@ impl Default for Effects {
             collision: true,
             dynamics: true,
             pinning: false,
+            friction: false,
         }
     }
 }
@@ -315,6 +321,13 @@ impl SceneConfig {
         }
         if !self.motions.iter().any(|m| m.split() == Split::Train) {
             return Err(invalid("motions", "no motion is in the \"train\" split"));
+        }
+        let e = &self.effects;
+        if e.friction && !(e.collision && e.dynamics) {
+            return Err(invalid(
+                "effects.friction",
+                "friction acts where the cloth touches the moving body: it needs collision and dynamics",
+            ));
         }
         Ok(())
     }

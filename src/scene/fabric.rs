@@ -92,6 +92,9 @@ pub struct FabricParams {
     pub pinning_stiffness: f32,
     /// Gravity acceleration vector in m/s² (Y up). Length at most 1000, default `[0, -9.81, 0]`.
     pub gravity_m_per_s2: [f32; 3],
+    /// Coulomb friction coefficient `μ` between cloth and skin (dimensionless), used when the
+    /// scene's friction effect is on. Range `[0, 2]`, default 0.5.
+    pub friction_coefficient: f32,
 }
 
 impl Default for FabricParams {
@@ -108,6 +111,7 @@ impl Default for FabricParams {
             collision_threshold_m: 0.004,
             pinning_stiffness: 100.0,
             gravity_m_per_s2: [0.0, -9.81, 0.0],
+            friction_coefficient: 0.5,
         }
     }
 }
@@ -212,6 +216,7 @@ impl FabricParams {
             0.1,
         )?;
         check("pinning_stiffness", self.pinning_stiffness, 0.0, 1e8)?;
+        check("friction_coefficient", self.friction_coefficient, 0.0, 2.0)?;
         for (k, g) in self.gravity_m_per_s2.iter().enumerate() {
             check(
                 [

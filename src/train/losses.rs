@@ -2,8 +2,43 @@
 
 use burn::tensor::Tensor;
 
-use crate::physics::PhysicsTerms;
 use crate::physics::tensors::{norm2, per_sample};
+use crate::physics::{BodyBatch, Contacts, FrictionContacts, PhysicsTerms};
+use crate::scene::Avatar;
+
+use super::TrainError;
+use super::data::{Batch, Dataset};
+
+/// The friction inputs of a training or validation batch: `contacts` were queried for the
+/// loss frames `2..K` of `batch`, stacked frame by frame; the step of each row starts at the
+/// frame before (a still window's body does not move). Rows of samples `kept..` of each frame
+/// (augmented samples, whose previous frame is not their own) get no friction. None when the
+/// scene's friction is off.
+pub fn friction_contacts(
+    terms: &PhysicsTerms,
+    data: &Dataset,
+    avatar: &Avatar,
+    batch: &Batch,
+    contacts: &Contacts,
+    kept: usize,
+) -> Result<Option<FrictionContacts>, TrainError> {
+    if !terms.friction_on() {
+        return Ok(None);
+    }
+    let bodies = |frames: Vec<(usize, usize)>| -> Result<BodyBatch, TrainError> {
+        let bodies = frames
+            .into_iter()
+            .map(|(m, f)| data.body(avatar, m, f))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(BodyBatch::new(bodies))
+    };
+    let now = batch.stacked_frames(2);
+    let mut before = batch.stacked_frames(1);
+    before.truncate(now.len());
+    let b = batch.size.max(1);
+    let active: Vec<bool> = (0..now.len()).map(|row| row % b < kept).collect();
+    Ok(terms.friction_contacts(contacts, &bodies(now)?, &bodies(before)?, &active)?)
+}
 
 /// SNUG-style inertia (paper §4.5 comparison): `m |x_t - (2x_{t-1} - x_{t-2})|² / (2Δt²)`
 /// with gradients flowing into the past frames too (no stop-gradient), batch mean. `None`

@@ -37,6 +37,13 @@ pub struct MetricRecord {
     /// probe window. Measured on validation passes only (0 on training steps).
     #[serde(default)]
     pub dead_units_pct: f64,
+    /// Friction dissipation per garment, joules (0 when the scene has no friction).
+    #[serde(default)]
+    pub friction: f64,
+    /// Mean slip of the garment over the body where it touches, millimetres per frame (0 when
+    /// not measured).
+    #[serde(default)]
+    pub slip_mm: f64,
 }
 
 impl MetricRecord {
@@ -108,6 +115,8 @@ impl MetricRecord {
             inertia: m.inertia_j.unwrap_or(0.0),
             paper_bending: m.paper_bending_rad,
             paper_stretch: m.paper_stretch,
+            friction: m.friction_j.unwrap_or(0.0),
+            slip_mm: m.slip_m.map_or(0.0, |s| 1e3 * s),
             ..Default::default()
         }
     }
@@ -128,6 +137,8 @@ impl MetricRecord {
             paper_bending: sum(|r| r.paper_bending),
             paper_stretch: sum(|r| r.paper_stretch),
             dead_units_pct: sum(|r| r.dead_units_pct),
+            friction: sum(|r| r.friction),
+            slip_mm: sum(|r| r.slip_mm),
         }
     }
 }

@@ -7,7 +7,8 @@
 //! against the stop-gradient projection `2x_{t-1} - x_{t-2}` of the network's own previous
 //! frames (or, in `snug` mode, with gradients into the past frames); motion augmentation
 //! replaces the dynamic code of a fraction of the batch by another sample's (encoders
-//! detached, static losses only); Adam.
+//! detached, static losses only); with the friction effect, the friction dissipation of each
+//! loss frame's slip over the body since the network's own previous frame; Adam.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -381,6 +382,7 @@ impl Session for NeuralSession {
         let mut total = losses
             .total()
             .unwrap_or_else(|| Tensor::zeros([1], &self.device));
+        let mut friction = None;
         if self.terms.effects().dynamics {
             let kept = b - augment;
             let (xt, xt1, xt2) = (
@@ -401,6 +403,22 @@ impl Session for NeuralSession {
             if let Some(inertia) = inertia {
                 total = total + inertia;
             }
+            if let Some(c) = &contacts {
+                friction = super::losses::friction_contacts(
+                    &self.terms,
+                    &self.train,
+                    &self.avatar,
+                    &batch,
+                    c,
+                    kept,
+                )?;
+            }
+            if let Some(fc) = &friction {
+                let xt1 = stack_frames(&x, 1, predicted - 1, b);
+                if let Some(d) = self.terms.friction(&x_t, &xt1, fc) {
+                    total = total + d;
+                }
+            }
         }
         let loss = total.clone().into_scalar::<f64>();
         let grads = total.backward();
@@ -418,6 +436,7 @@ impl Session for NeuralSession {
             x_t1: head(frame(&x, predicted - 2)),
             x_t2: head(frame(&x, predicted - 3)),
             dt_secs: self.config.dt_secs(),
+            friction: friction.map(|fc| fc.narrow((predicted - 3) * b, n)),
         };
         // The last frame's block of the stacked contacts.
         let last = (predicted - 3) * b;
@@ -426,6 +445,7 @@ impl Session for NeuralSession {
             points: c.points.narrow(0, last, n),
             normals: c.normals.narrow(0, last, n),
             distances_m: c.distances_m[last * v..(last + n) * v].to_vec(),
+            indices: c.indices[last * v..(last + n) * v].to_vec(),
         });
         let metrics = self.terms.metrics(
             &head(frame(&x, predicted - 1)),
@@ -465,10 +485,28 @@ impl Session for NeuralSession {
         {
             loss += i.into_scalar::<f64>();
         }
+        let friction = match &contacts {
+            Some(c) => super::losses::friction_contacts(
+                &self.terms,
+                data,
+                &self.avatar,
+                &batch,
+                c,
+                batch.size,
+            )?,
+            None => None,
+        };
+        if let Some(d) = friction
+            .as_ref()
+            .and_then(|fc| self.terms.friction(&x_t, &x_t1, fc))
+        {
+            loss += d.into_scalar::<f64>();
+        }
         let history = History {
             x_t1,
             x_t2,
             dt_secs: self.config.dt_secs(),
+            friction,
         };
         let metrics = self
             .terms

@@ -28,6 +28,7 @@ pub fn all_effects() -> Effects {
         collision: true,
         dynamics: true,
         pinning: true,
+        friction: true,
     }
 }
 

@@ -160,3 +160,96 @@ fn reference_simulator_spins_a_skirt_open() {
         "a spinning skirt rises against gravity"
     );
 }
+
+/// Yaw of a sheet draped on a spinning sphere after `spin_frames` frames at `omega` rad/s
+/// (after 10 frames of settling), relative to the centre: mean over vertices of the change of
+/// their azimuth, radians.
+fn sheet_yaw_on_spinning_sphere(friction: bool, omega: f32, spin_frames: usize) -> f32 {
+    use neural_cloth::geometry::Quat;
+    use neural_cloth::physics::shapes::{sheet, uv_sphere};
+    use neural_cloth::physics::simulator::{StepInput, Stepper};
+
+    use super::common::{all_effects, rest_of};
+
+    let c0 = Vec3::new(0.0, 1.0, 0.0);
+    let radius = 0.25;
+    let body0 = uv_sphere(c0, radius, 12, 18);
+    let size = 0.4;
+    let mesh = sheet(
+        8,
+        8,
+        c0 + Vec3::new(-size / 2.0, radius + 0.003, size / 2.0),
+        Vec3::x() * size,
+        -Vec3::z() * size,
+    );
+    let fabric = FabricParams::default();
+    let rest = rest_of(&mesh, &[], &[], &fabric);
+    let effects = neural_cloth::physics::Effects {
+        pinning: false,
+        friction,
+        ..all_effects()
+    };
+    let fps = 30.0;
+    let options = SimOptions {
+        iterations_per_step: 30,
+        ..SimOptions::default()
+    };
+    let mut stepper = Stepper::new(
+        rest,
+        &fabric,
+        &effects,
+        &mesh.positions,
+        1.0 / fps,
+        &options,
+        &Device::flex(),
+    )
+    .unwrap();
+    let settle = 10;
+    let mut start = Vec::new();
+    let mut x = Vec::new();
+    for k in 0..settle + spin_frames {
+        let angle = omega * (k.saturating_sub(settle) as f32) / fps;
+        let rot = Quat::from_axis_angle(&Vec3::y_axis(), angle);
+        let positions = body0.positions.iter().map(|p| c0 + rot * (p - c0)).collect();
+        let body = PosedBody::new(positions, &body0.faces).unwrap();
+        let input = StepInput {
+            body: Some(Arc::new(body)),
+            ..Default::default()
+        };
+        x = stepper.step(&input).unwrap().0;
+        if k + 1 == settle {
+            start = x.clone();
+        }
+    }
+    let azimuth = |p: &Vec3| (p.z - c0.z).atan2(p.x - c0.x);
+    let turns: Vec<f32> = start
+        .iter()
+        .zip(&x)
+        .filter(|(a, _)| (a.x - c0.x).hypot(a.z - c0.z) > 0.05)
+        .map(|(a, b)| {
+            let d = azimuth(a) - azimuth(b);
+            d.sin().atan2(d.cos())
+        })
+        .collect();
+    turns.iter().sum::<f32>() / turns.len().max(1) as f32
+}
+
+/// Friction carries cloth along with a turning body where frictionless contact lets it slip
+/// (the frictionless simulator's t-shirt lags the spinning mannequin, docs/TRAINING.md round 5).
+#[test]
+fn friction_turns_a_draped_sheet_with_its_spinning_body() {
+    let (omega, frames) = (2.0, 15);
+    let body_turn = omega * frames as f32 / 30.0;
+    let with = sheet_yaw_on_spinning_sphere(true, omega, frames);
+    let without = sheet_yaw_on_spinning_sphere(false, omega, frames);
+    eprintln!("sheet yaw: body {body_turn:.3} rad, friction {with:.3}, frictionless {without:.3}");
+    assert!(with.is_finite() && without.is_finite());
+    assert!(
+        with > 0.5 * body_turn,
+        "with friction the sheet turned {with} rad of the body's {body_turn}"
+    );
+    assert!(
+        without.abs() < 0.5 * with,
+        "frictionless, the sheet turned {without} rad against {with} with friction"
+    );
+}

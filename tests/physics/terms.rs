@@ -27,6 +27,7 @@ fn effects_decide_which_terms_exist() {
         collision: false,
         dynamics: false,
         pinning: false,
+        friction: false,
     };
     let t = terms(&rest, &fabric, &bare, &device, DType::F32);
     assert!(
@@ -88,6 +89,7 @@ fn metrics_of_rest_stretched_and_moving_meshes() {
         x_t1: tensor(&shift(0.01), &device, DType::F32),
         x_t2: tensor(&shift(0.0), &device, DType::F32),
         dt_secs: 0.1,
+        friction: None,
     };
     let m = t
         .metrics(

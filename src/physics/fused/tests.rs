@@ -35,6 +35,7 @@ fn all_effects() -> Effects {
         collision: true,
         dynamics: true,
         pinning: true,
+        friction: true,
     }
 }
 

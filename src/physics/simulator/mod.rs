@@ -21,6 +21,7 @@ pub use residual::FrameResidual;
 pub use sequence::{SimProgress, Simulation, settle_on_rest_pose, simulate};
 
 use crate::physics::collision::{BodyBatch, Contacts, PosedBody};
+use crate::physics::friction::FrictionContacts;
 use crate::physics::lbfgs::{self, InitialMetric, LbfgsOptions};
 use crate::physics::rest::GarmentRest;
 use crate::physics::sparse::EnvelopeCholesky;
@@ -114,6 +115,10 @@ pub struct FrameReport {
 pub struct StepInput {
     /// Body at the end of the step.
     pub body: Option<Arc<PosedBody>>,
+    /// Body at the start of the step, for friction (the body's motion at the contacts). None:
+    /// the body of the stepper's previous step ([`Stepper::step`]), or a body at rest
+    /// ([`Stepper::residual_at`]).
+    pub body_before: Option<Arc<PosedBody>>,
     /// Pinning targets at the end of the step.
     pub pin_targets: Option<Vec<Vec3>>,
     /// The garment template skinned to the pose at the end of the step. Without dynamics a
@@ -141,6 +146,8 @@ pub struct Stepper {
     x_t2: Vec<f64>,
     /// The skinned template of the previous step, flattened (see [`StepInput::skinned`]).
     skinned_t1: Option<Vec<f64>>,
+    /// The body of the previous step (friction's start of the step).
+    body_t1: Option<Arc<PosedBody>>,
     dt_secs: f32,
     options: SimOptions,
     force_scale: f64,
@@ -222,6 +229,7 @@ impl Stepper {
             x_t1: x0.clone(),
             x_t2: x0,
             skinned_t1: None,
+            body_t1: None,
             dt_secs,
             force_scale: (mean_mass * g).max(1e-30),
             max_step_m: options.max_step_edges * rest.mean_edge_m.max(1e-6),
@@ -289,7 +297,14 @@ impl Stepper {
             value_noise: self.value_noise,
             ..Default::default()
         };
+        let before = input
+            .body_before
+            .clone()
+            .or_else(|| self.body_t1.clone())
+            .or_else(|| input.body.clone())
+            .map(|b| BodyBatch::new(vec![b]));
         let mut last_contacts: Option<Contacts>;
+        let mut last_friction: Option<FrictionContacts>;
         let mut memory = lbfgs::Memory::new();
         loop {
             let contacts = match &body {
@@ -298,6 +313,12 @@ impl Stepper {
                     Some(Contacts::query(b, &flat, v, &device, dtype)?)
                 }
                 None => None,
+            };
+            let friction = match (&contacts, &body, &before) {
+                (Some(c), Some(now), Some(before)) => {
+                    self.terms.friction_contacts(c, now, before, &[])?
+                }
+                _ => None,
             };
             // The metric with the contact stiffness of the vertices near the body.
             let near: Vec<usize> = contacts.as_ref().map_or_else(Vec::new, |c| {
@@ -342,6 +363,7 @@ impl Stepper {
                 self.objective(
                     &upload(xs),
                     contacts.as_ref(),
+                    friction.as_ref(),
                     &x_t1,
                     &x_t2,
                     pin_target.as_ref(),
@@ -355,6 +377,7 @@ impl Stepper {
             report.objective_j = r.value;
             report.residual = r.grad_inf / self.force_scale;
             last_contacts = contacts;
+            last_friction = friction;
             let stalled = r.iterations < budget && !r.converged;
             if spent >= self.options.iterations_per_step
                 || (r.converged && (r.iterations == 0 || body.is_none()))
@@ -369,6 +392,7 @@ impl Stepper {
         let (_, potential, _) = self.objective(
             &upload(&x),
             last_contacts.as_ref(),
+            last_friction.as_ref(),
             &x_t1,
             &x_t2,
             pin_target.as_ref(),
@@ -390,14 +414,18 @@ impl Stepper {
             })
             .sum();
         self.x_t2 = std::mem::replace(&mut self.x_t1, x);
+        self.body_t1 = input.body.clone();
         Ok((self.positions(), report))
     }
 
     /// `(objective, potential part, gradient)`; the gradient is empty when `grad` is false.
+    /// The objective holds friction's dissipation (with `friction`), the potential part not.
+    #[allow(clippy::too_many_arguments)]
     fn objective(
         &self,
         x: &Tensor<3>,
         contacts: Option<&Contacts>,
+        friction: Option<&FrictionContacts>,
         x_t1: &Tensor<3>,
         x_t2: &Tensor<3>,
         pin_target: Option<&Tensor<3>>,
@@ -421,10 +449,13 @@ impl Stepper {
             });
         }
         let potential = potential.unwrap_or_else(|| self.terms.tensors().zeros(1));
-        let total = match self.terms.inertia(&x, x_t1, x_t2, self.dt_secs) {
+        let mut total = match self.terms.inertia(&x, x_t1, x_t2, self.dt_secs) {
             Some(inertia) => potential.clone() + inertia,
             None => potential.clone(),
         };
+        if let Some(d) = friction.and_then(|fc| self.terms.friction(&x, x_t1, fc)) {
+            total = total + d;
+        }
         let value = read_f64(total.clone().detach())?
             .first()
             .copied()

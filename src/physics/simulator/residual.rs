@@ -74,9 +74,22 @@ impl Stepper {
             (Some(t), true) => Some(positions_tensor(&[t.as_slice()], &device, dtype)?),
             _ => None,
         };
+        let friction = match (&contacts, &input.body) {
+            (Some(c), Some(now)) => {
+                let before = input.body_before.as_ref().unwrap_or(now);
+                self.terms.friction_contacts(
+                    c,
+                    &BodyBatch::new(vec![now.clone()]),
+                    &BodyBatch::new(vec![before.clone()]),
+                    &[],
+                )?
+            }
+            _ => None,
+        };
         let (value, _, grad) = self.objective(
             &upload(x)?,
             contacts.as_ref(),
+            friction.as_ref(),
             &upload(x_t1)?,
             &upload(x_t2)?,
             pin_target.as_ref(),

@@ -85,6 +85,7 @@ pub fn simulate(
             body,
             pin_targets,
             skinned: (!effects.dynamics).then_some(skinned).flatten(),
+            body_before: None,
         })
     };
     for _ in 0..settle_steps {
