@@ -10,6 +10,7 @@ pub mod mesh;
 pub mod rotation;
 pub mod skinning;
 pub mod topology;
+pub mod wide_kdtree;
 
 pub use bucket_kdtree::BucketKdTree;
 pub use kdtree::KdTree;
@@ -17,6 +18,7 @@ pub use mesh::{MeshError, MeshReport, TriMesh, safe_normalize};
 pub use rotation::{mat3_from_6d, rotation_to_6d, slerp_unit};
 pub use skinning::{SkinWeights, linear_blend_skin, linear_blend_skin_into};
 pub use topology::{Hinge, Topology};
+pub use wide_kdtree::WideKdTree;
 
 /// Single-precision 3-vector used for positions and directions.
 pub type Vec3 = nalgebra::Vector3<f32>;
