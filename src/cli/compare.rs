@@ -215,4 +215,17 @@ fn motion_table(s: &mut String, m: &MotionComparison) {
     for ((name, a), (_, b)) in net.iter().zip(&sim) {
         let _ = writeln!(s, "  {name:<28}{a:>12.4}{b:>12.4}");
     }
+    let (net, sim) = (&m.metrics.network, &m.metrics.simulator);
+    let _ = writeln!(
+        s,
+        "  {:<28}{:>12.3}{:>12.3}",
+        "slip over the body, mm/frame", net.slip_mm, sim.slip_mm
+    );
+    if net.friction != 0.0 || sim.friction != 0.0 {
+        let _ = writeln!(
+            s,
+            "  {:<28}{:>12.6}{:>12.6}",
+            "friction", net.friction, sim.friction
+        );
+    }
 }

@@ -380,6 +380,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     if let Some(p) = args.predrape_secs {
         train.predrape_secs = p;
     }
+                r.slip_mm,
     model.basis_bias = !args.no_basis_bias;
     model.normalise_dynamic_input = args.scale_dynamic_input;
     if let Some(on) = args.dynamic_basis {

@@ -12,8 +12,8 @@ use super::data::{Batch, Dataset};
 /// The friction inputs of a training or validation batch: `contacts` were queried for the
 /// loss frames `2..K` of `batch`, stacked frame by frame; the step of each row starts at the
 /// frame before (a still window's body does not move). Rows of samples `kept..` of each frame
-/// (augmented samples, whose previous frame is not their own) get no friction. None when the
-/// scene's friction is off.
+/// (augmented samples, whose previous frame is not their own) get no friction. Built whatever
+/// the friction effect (the slip metric reads it); None without dynamics.
 pub fn friction_contacts(
     terms: &PhysicsTerms,
     data: &Dataset,
@@ -22,7 +22,7 @@ pub fn friction_contacts(
     contacts: &Contacts,
     kept: usize,
 ) -> Result<Option<FrictionContacts>, TrainError> {
-    if !terms.friction_on() {
+    if !terms.effects().dynamics {
         return Ok(None);
     }
     let bodies = |frames: Vec<(usize, usize)>| -> Result<BodyBatch, TrainError> {
@@ -37,7 +37,14 @@ pub fn friction_contacts(
     before.truncate(now.len());
     let b = batch.size.max(1);
     let active: Vec<bool> = (0..now.len()).map(|row| row % b < kept).collect();
-    Ok(terms.friction_contacts(contacts, &bodies(now)?, &bodies(before)?, &active)?)
+    Ok(Some(FrictionContacts::new(
+        contacts,
+        &bodies(now)?,
+        &bodies(before)?,
+        &active,
+        terms.rest(),
+        terms.fabric(),
+    )?))
 }
 
 /// SNUG-style inertia (paper §4.5 comparison): `m |x_t - (2x_{t-1} - x_{t-2})|² / (2Δt²)`

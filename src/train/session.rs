@@ -403,7 +403,7 @@ impl Session for NeuralSession {
             if let Some(inertia) = inertia {
                 total = total + inertia;
             }
-            if let Some(c) = &contacts {
+            if let (Some(c), true) = (&contacts, self.terms.friction_on()) {
                 friction = super::losses::friction_contacts(
                     &self.terms,
                     &self.train,
