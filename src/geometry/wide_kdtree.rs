@@ -24,7 +24,7 @@ pub const FAN: usize = 16;
 /// Most points per leaf.
 pub const LEAF: usize = 32;
 
-const _: () = assert!(FAN <= 31 && LEAF <= 64 && LEAF % 8 == 0);
+const _: () = assert!(FAN <= 31 && LEAF <= 64 && LEAF.is_multiple_of(8));
 
 /// A child reference with this bit set is a leaf.
 const LEAF_BIT: u32 = 1 << 31;

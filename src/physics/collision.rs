@@ -130,6 +130,27 @@ impl Contacts {
         device: &Device,
         dtype: DType,
     ) -> Result<Self, PhysicsError> {
+        Self::query_with(
+            bodies,
+            x_flat,
+            vertices,
+            device,
+            dtype,
+            |_, body, q, seed| body.nearest_from(q, seed),
+        )
+    }
+
+    /// [`Contacts::query`] with another nearest-vertex function `nearest(sample, body, q,
+    /// seed)` (the cost benchmark times the query of before through it, with everything else
+    /// the same).
+    pub fn query_with(
+        bodies: &BodyBatch,
+        x_flat: &[f32],
+        vertices: usize,
+        device: &Device,
+        dtype: DType,
+        nearest: impl Fn(usize, &PosedBody, &Vec3, Option<usize>) -> usize + Sync,
+    ) -> Result<Self, PhysicsError> {
         let b = bodies.len();
         if b == 0 || x_flat.len() != b * vertices * 3 {
             return Err(PhysicsError::ShapeMismatch {
@@ -148,19 +169,20 @@ impl Contacts {
             .zip(distances_m.par_chunks_mut(QUERY_CHUNK))
             .zip(indices.par_chunks_mut(QUERY_CHUNK))
             .enumerate()
-            .for_each(|(chunk, (((points, normals), distances), nearest))| {
+            .for_each(|(chunk, (((points, normals), distances), found))| {
                 let first = chunk * QUERY_CHUNK;
                 let mut seed = None;
-                for (j, (d, nearest)) in distances.iter_mut().zip(nearest).enumerate() {
+                for (j, (d, found)) in distances.iter_mut().zip(found).enumerate() {
                     let k = first + j;
-                    if k % vertices.max(1) == 0 {
+                    if k.is_multiple_of(vertices.max(1)) {
                         seed = None;
                     }
-                    let body = &bodies.bodies[k / vertices.max(1)];
+                    let sample = k / vertices.max(1);
+                    let body = &bodies.bodies[sample];
                     let q = Vec3::new(x_flat[3 * k], x_flat[3 * k + 1], x_flat[3 * k + 2]);
-                    let i = body.nearest_from(&q, seed);
+                    let i = nearest(sample, body, &q, seed);
                     seed = Some(i);
-                    *nearest = i as u32;
+                    *found = i as u32;
                     let (p, n) = (body.positions[i], body.normals[i]);
                     points[3 * j..3 * j + 3].copy_from_slice(&[p.x, p.y, p.z]);
                     normals[3 * j..3 * j + 3].copy_from_slice(&[n.x, n.y, n.z]);
