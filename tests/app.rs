@@ -28,6 +28,8 @@ mod runs;
 mod status;
 #[path = "common/tiny_scene.rs"]
 mod tiny_scene;
+#[path = "app/up_axis.rs"]
+mod up_axis;
 use tiny_scene::TINY;
 
 use std::path::{Path, PathBuf};

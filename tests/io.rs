@@ -6,7 +6,7 @@
 //! its validators (`io/usd_export.rs`). Retargeting across rig naming conventions, rest poses,
 //! glTF rigs and joint maps, on fixtures written by our own code (`io/rigs.rs`); by skeleton
 //! structure where the joint names say nothing (`io/structure.rs`). Z-up BVH, GLB and OBJ files
-//! turned Y up (`io/up_axis.rs`). Garment
+//! turned Y up (`io/up_axis.rs`), and a scene of them loading as its Y-up twin (`io/scene_up.rs`). Garment
 //! fitting on built-in and MakeHuman garments, and the `fit` command (`io/fit.rs`); garments
 //! made for another arm pose re-posed (`io/sleeves.rs`). Characters
 //! built partly of rigid meshes parented to bones (`io/rigid_parts.rs`).
@@ -31,6 +31,8 @@ mod raw_gltf;
 mod rigid_parts;
 #[path = "io/rigs.rs"]
 mod rigs;
+#[path = "io/scene_up.rs"]
+mod scene_up;
 #[path = "io/sleeves.rs"]
 mod sleeves;
 #[path = "io/structure.rs"]

@@ -527,6 +527,7 @@ fn default_scene_builds_from_the_asset() {
     with_file.garment = neural_cloth::scene::config::GarmentSource::File {
         path: "g.obj".into(),
         units: None,
+        up: neural_cloth::scene::UpAxis::Auto,
         smoothing_passes: None,
     };
     assert!(procedural::build_builtin(&with_file).is_err());

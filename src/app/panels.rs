@@ -97,6 +97,27 @@ impl NeuralClothApp {
         }
     }
 
+    /// The "Up axis" row: auto, Y or Z for the files loaded next (a Z-up file is turned Y up).
+    fn up_axis_row(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            let label = ui.label("Up axis");
+            let up = &mut self.state.typed.up;
+            egui::ComboBox::from_id_salt("up_axis")
+                .selected_text(up.label())
+                .show_ui(ui, |ui| {
+                    for choice in crate::scene::UpAxis::ALL {
+                        ui.selectable_value(up, choice, choice.label());
+                    }
+                })
+                .response
+                .labelled_by(label.id)
+                .on_hover_text(
+                    "Which axis of the files loaded next points up: auto detects it (from a \
+                     skeleton, or an OBJ's shape), Z turns a Z-up file Y up",
+                );
+        });
+    }
+
     /// One "label, typed path, Load, Browse…" row.
     fn load_row(&mut self, ui: &mut egui::Ui, kind: LoadKind) {
         let (label, hint) = match kind {
@@ -147,6 +168,7 @@ impl NeuralClothApp {
                     avatar.name,
                     avatar.skeleton.len()
                 ));
+                self.up_axis_row(ui);
                 self.load_row(ui, LoadKind::Avatar);
                 self.load_row(ui, LoadKind::Garment);
                 self.fit_ui(ui);
@@ -255,6 +277,12 @@ impl NeuralClothApp {
                     f.collision_threshold_m = eps_mm / 1000.0;
                     changed = true;
                 }
+                changed |= ui
+                    .add(
+                        egui::Slider::new(&mut f.friction_coefficient, 0.0..=2.0)
+                            .text("friction μ (with the friction effect)"),
+                    )
+                    .changed();
                 if changed {
                     self.state.fabric_changed();
                 }
@@ -275,14 +303,13 @@ impl NeuralClothApp {
                     changed |= ui.checkbox(&mut e.collision, "collision").changed();
                     changed |= ui.checkbox(&mut e.dynamics, "dynamics (inertia)").changed();
                     changed |= ui.checkbox(&mut e.pinning, "pinning").changed();
+                    let can_rub = e.collision && e.dynamics;
+                    changed |= ui
+                        .add_enabled(can_rub, egui::Checkbox::new(&mut e.friction, "friction"))
+                        .on_disabled_hover_text("friction needs collision and dynamics")
+                        .changed();
                     if changed {
                         // Dynamics changes the network layout of the preview.
-                changed |= ui
-                    .add(
-                        egui::Slider::new(&mut f.friction_coefficient, 0.0..=2.0)
-                            .text("friction μ (with the friction effect)"),
-                    )
-                    .changed();
                         self.state.preview.reset_scene();
                         self.state.scene.revision += 1;
                     }
@@ -303,11 +330,6 @@ impl NeuralClothApp {
             });
     }
 
-                    let can_rub = e.collision && e.dynamics;
-                    changed |= ui
-                        .add_enabled(can_rub, egui::Checkbox::new(&mut e.friction, "friction"))
-                        .on_disabled_hover_text("friction needs collision and dynamics")
-                        .changed();
     /// The status line: the latest message, coloured by severity.
     pub fn status_ui(&mut self, ui: &mut egui::Ui) {
         let animating = self.state.playback.playing || self.state.training.state().is_active();

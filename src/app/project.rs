@@ -313,9 +313,9 @@ impl RecentFiles {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::Split;
-    use crate::scene::config::{GarmentSource, MotionSource};
+    use crate::scene::config::{AvatarSource, GarmentSource, MotionSource};
     use crate::scene::procedural::GarmentKind;
+    use crate::scene::{Split, UpAxis};
 
     #[test]
     fn round_trip_keeps_everything_and_relativises_paths() {
@@ -324,11 +324,13 @@ mod tests {
         p.scene.garment = GarmentSource::File {
             path: dir.path().join("garments/shirt.obj"),
             units: None,
+            up: UpAxis::Z,
             smoothing_passes: Some(30),
         };
         p.scene.motions.push(MotionSource::File {
             path: PathBuf::from("/elsewhere/walk.bvh"),
             units: None,
+            up: UpAxis::Y,
             split: Split::Validation,
             name: None,
             joint_map: Some(dir.path().join("maps/walk.toml")),
@@ -354,6 +356,51 @@ mod tests {
         // The training rate has one home, the scene's.
         p.training.fps = 60.0;
         assert_eq!(back, p);
+    }
+
+    #[test]
+    fn a_version_2_project_from_before_the_up_axis_still_opens() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("old.toml");
+        // As the version-2 app wrote it before file sources had `up`.
+        let old = "version = 2\n\n[scene]\nname = \"body\"\ntraining_fps = 30.0\n\n\
+                   [scene.avatar]\npath = \"avatars/body.glb\"\n\n[scene.garment]\n\
+                   path = \"garments/shirt.obj\"\nunits = \"cm\"\nsmoothing_passes = 3\n\n\
+                   [[scene.motions]]\npath = \"avatars/body.glb\"\nsplit = \"train\"\n\n\
+                   [scene.effects]\ngravity = true\nbending = true\ncollision = true\n\
+                   dynamics = true\npinning = false\n\n[scene.fabric]\npreset = \"default\"\n";
+        std::fs::write(&file, old).unwrap();
+        let p = ProjectFile::open(&file).unwrap();
+        assert_eq!(p.version, PROJECT_VERSION);
+        assert!(matches!(
+            &p.scene.avatar,
+            AvatarSource::File { up: UpAxis::Auto, path, .. } if path == &dir.path().join("avatars/body.glb")
+        ));
+        assert!(matches!(
+            p.scene.garment,
+            GarmentSource::File {
+                up: UpAxis::Auto,
+                ..
+            }
+        ));
+        assert!(matches!(
+            p.scene.motions[0],
+            MotionSource::File {
+                up: UpAxis::Auto,
+                ..
+            }
+        ));
+        // Saved again, auto is left out, and a set axis is written and read back.
+        p.save(&file).unwrap();
+        assert!(!std::fs::read_to_string(&file).unwrap().contains("up ="));
+        let mut p = p;
+        if let GarmentSource::File { up, .. } = &mut p.scene.garment {
+            *up = UpAxis::Z;
+        }
+        p.save(&file).unwrap();
+        let text = std::fs::read_to_string(&file).unwrap();
+        assert_eq!(text.matches("up = \"z\"").count(), 1, "{text}");
+        assert_eq!(ProjectFile::open(&file).unwrap().scene, p.scene);
     }
 
     #[test]

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use serde::Deserialize;
 
 use crate::scene::config::{AvatarSource, GarmentSource, MotionSource, SceneConfig, Split};
-use crate::scene::{Effects, FabricParams};
+use crate::scene::{Effects, FabricParams, UpAxis};
 use crate::train::TrainConfig;
 
 use super::project::{PROJECT_VERSION, ProjectFile, ViewSettings};
@@ -73,6 +73,7 @@ pub fn convert(table: toml::Table) -> Result<ProjectFile, String> {
     let file_motion = |path: PathBuf| MotionSource::File {
         path,
         units: None,
+        up: UpAxis::Auto,
         split: Split::Train,
         name: None,
         joint_map: None,
@@ -86,6 +87,7 @@ pub fn convert(table: toml::Table) -> Result<ProjectFile, String> {
         scene.avatar = AvatarSource::File {
             path: avatar.clone(),
             units: None,
+            up: UpAxis::Auto,
         };
         scene.motions = vec![file_motion(avatar.clone())];
     }
@@ -93,6 +95,7 @@ pub fn convert(table: toml::Table) -> Result<ProjectFile, String> {
         scene.garment = GarmentSource::File {
             path: garment.clone(),
             units: None,
+            up: UpAxis::Auto,
             smoothing_passes: None,
         };
     }
@@ -173,6 +176,7 @@ w = 1.5
             GarmentSource::File {
                 path: dir.path().join("garments/skirt.obj"),
                 units: None,
+                up: UpAxis::Auto,
                 smoothing_passes: None,
             }
         );
@@ -184,6 +188,7 @@ w = 1.5
             Some(&MotionSource::File {
                 path: dir.path().join("motions/walk.bvh"),
                 units: None,
+                up: UpAxis::Auto,
                 split: Split::Train,
                 name: None,
                 joint_map: None,

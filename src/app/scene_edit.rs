@@ -10,16 +10,18 @@ use std::sync::Arc;
 use crate::io::scene_loader::SceneLoader;
 use crate::io::{IoError, JointMap};
 use crate::scene::config::{AvatarSource, GarmentSource, MotionSource};
-use crate::scene::{Avatar, Motion, SceneConfig, Split};
+use crate::scene::{Avatar, Motion, SceneConfig, Split, UpAxis};
 
 use super::panels::LoadKind;
 use super::state::{AppState, Level, SceneParts};
 
-/// A training motion source for the file at `path`, retargeted with `joint_map`.
-fn motion_file(path: PathBuf, joint_map: Option<PathBuf>) -> MotionSource {
+/// A training motion source for the file at `path` (up axis `up`), retargeted with
+/// `joint_map`.
+fn motion_file(path: PathBuf, up: UpAxis, joint_map: Option<PathBuf>) -> MotionSource {
     MotionSource::File {
         path,
         units: None,
+        up,
         split: Split::Train,
         name: None,
         joint_map,
@@ -82,11 +84,13 @@ impl AppState {
     pub fn load_avatar(&mut self, path: &Path) -> bool {
         let file = absolute(path);
         let mut config = self.scene.config.clone();
+        let up = self.typed.up;
         config.avatar = AvatarSource::File {
             path: file.clone(),
             units: None,
+            up,
         };
-        config.motions = vec![motion_file(file, None)];
+        config.motions = vec![motion_file(file, up, None)];
         let origin = self.scene_origin();
         let loader = SceneLoader::new(&config, Path::new("."), &origin);
         let mut warnings = Vec::new();
@@ -139,6 +143,7 @@ impl AppState {
         config.garment = GarmentSource::File {
             path: absolute(path),
             units: None,
+            up: self.typed.up,
             smoothing_passes: None,
         };
         let origin = self.scene_origin();
@@ -193,7 +198,10 @@ impl AppState {
             return false;
         }
         let mut config = self.scene.config.clone();
-        config.motions.push(motion_file(absolute(path), joint_map));
+        let up = self.typed.up;
+        config
+            .motions
+            .push(motion_file(absolute(path), up, joint_map));
         let origin = self.scene_origin();
         let mut warnings = Vec::new();
         let loaded = SceneLoader::new(&config, Path::new("."), &origin).motions(

@@ -100,6 +100,9 @@ pub struct TypedPaths {
     pub joint_map: String,
     /// Why the typed joint map was refused (shown under its field); None when it is fine.
     pub joint_map_error: Option<String>,
+    /// Up axis of the avatar, garment and motion files loaded next (recorded on each file's
+    /// source in the scene description); auto detects it.
+    pub up: crate::scene::UpAxis,
     /// Project file path.
     pub project: String,
     /// Run folder path.

@@ -11,8 +11,8 @@ use neural_cloth::bake::{
     BakeFormat, BakeOptions, FrameSource, ModelSource, Preset, SimulatorSource, bake,
 };
 use neural_cloth::io::JointMap;
-use neural_cloth::io::Units;
 use neural_cloth::io::scene_loader::{MotionImport, load_motions};
+use neural_cloth::io::{Units, UpAxis};
 use neural_cloth::physics::GarmentRest;
 use neural_cloth::physics::simulator::{SimOptions, Stepper};
 use neural_cloth::scene::{Motion, Scene};
@@ -28,6 +28,9 @@ pub struct OutputArgs {
     /// overriding the automatic joint mapping.
     #[arg(long)]
     pub joint_map: Option<PathBuf>,
+    /// Up axis of a --motion file: auto (detected from its rig), y or z (turned Y up).
+    #[arg(long, default_value = "auto")]
+    pub up: UpAxis,
     /// Output format.
     #[arg(long, value_parser = parse_format, default_value = "pc2")]
     pub format: BakeFormat,
@@ -100,12 +103,14 @@ pub struct SimulateArgs {
     pub output: OutputArgs,
 }
 
-/// The motion named `spec` in the scene, or loaded from the file `spec`.
+/// The motion named `spec` in the scene, or loaded from the file `spec` (up axis `up`,
+/// retargeted with `joint_map`).
 pub fn find_motion(
     scene: &Scene,
     spec: &str,
     fps: f32,
     joint_map: Option<&Path>,
+    up: UpAxis,
 ) -> anyhow::Result<Motion> {
     if let Some((m, _)) = scene.motions.iter().find(|(m, _)| m.name == spec) {
         return Ok(m.clone());
@@ -116,6 +121,7 @@ pub fn find_motion(
         let joint_map = joint_map.map(JointMap::load).transpose()?;
         let how = MotionImport {
             units: Units::Auto,
+            up,
             fps,
             only: None,
             joint_map: joint_map.as_ref(),
@@ -194,6 +200,7 @@ pub fn run(args: BakeArgs) -> anyhow::Result<()> {
         &args.output.motion,
         fps,
         args.output.joint_map.as_deref(),
+        args.output.up,
     )?;
     let options = options(&args.output, &motion, args.w);
     neural_cloth::bake::check_options(&options)?;
@@ -203,7 +210,9 @@ pub fn run(args: BakeArgs) -> anyhow::Result<()> {
 
 /// Runs `simulate`.
 pub fn simulate(args: SimulateArgs) -> anyhow::Result<()> {
-    let (scene, _) = super::train::scene_from_args(args.scene.as_deref(), None, None, None, None)?;
+    let (scene, _) = super::scene_args::scene_from_args(&super::scene_args::SceneArgs::file(
+        args.scene.as_deref(),
+    ))?;
     let fabric = scene.fabric.clone();
     let fps = args.output.fps;
     let motion = find_motion(
@@ -211,6 +220,7 @@ pub fn simulate(args: SimulateArgs) -> anyhow::Result<()> {
         &args.output.motion,
         fps,
         args.output.joint_map.as_deref(),
+        args.output.up,
     )?;
     let options = options(&args.output, &motion, 1.0);
     neural_cloth::bake::check_options(&options)?;

@@ -10,6 +10,7 @@ mod fit;
 pub mod headless;
 mod inspect;
 mod report;
+mod scene_args;
 mod screenshot;
 mod soak;
 mod train;

@@ -48,7 +48,7 @@ pub fn run(args: ReportArgs) -> anyhow::Result<()> {
     );
     let scene = match &args.scene {
         Some(path) => Some(
-            super::train::scene_from_args(Some(path), None, None, None, None)
+            super::scene_args::scene_from_args(&super::scene_args::SceneArgs::file(Some(path)))
                 .with_context(|| format!("loading {}", path.display()))?,
         ),
         None => None,

@@ -60,12 +60,21 @@ pub fn run(args: ScreenshotArgs) -> anyhow::Result<()> {
             (t.scene.clone(), Some(t))
         }
         None => (
-            super::train::scene_from_args(args.scene.as_deref(), None, None, None, None)?.0,
+            super::scene_args::scene_from_args(&super::scene_args::SceneArgs::file(
+                args.scene.as_deref(),
+            ))?
+            .0,
             None,
         ),
     };
     let motion = match &args.motion {
-        Some(name) => super::bake::find_motion(&scene, name, scene.training_fps, None)?,
+        Some(name) => super::bake::find_motion(
+            &scene,
+            name,
+            scene.training_fps,
+            None,
+            neural_cloth::io::UpAxis::Auto,
+        )?,
         None => scene
             .motions
             .first()

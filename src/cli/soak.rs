@@ -309,8 +309,9 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     );
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-    let (scene, scene_config) =
-        super::train::scene_from_args(args.scene.as_deref(), None, None, None, None)?;
+    let (scene, scene_config) = super::scene_args::scene_from_args(
+        &super::scene_args::SceneArgs::file(args.scene.as_deref()),
+    )?;
     anyhow::ensure!(!scene.motions.is_empty(), "the scene has no motion");
     let train = TrainConfig {
         fps: scene.training_fps,

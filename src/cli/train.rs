@@ -4,13 +4,14 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use neural_cloth::io::scene_loader::{folder_split, load_scene, load_scene_file};
+use super::scene_args::{SceneArgs, scene_config_from_args, scene_from_args};
 use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
-use neural_cloth::scene::config::{AvatarSource, GarmentSource, MotionSource, SceneConfig};
+use neural_cloth::scene::config::SceneConfig;
 use neural_cloth::train::retention::{MAX_KEEP_NEWEST, Retention};
+
 use neural_cloth::train::{
     BackendKind, RunDir, RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer, resume,
 };
@@ -37,6 +38,10 @@ pub struct TrainArgs {
     /// joint mapping of every motion file that has no map of its own.
     #[arg(long)]
     pub joint_map: Option<PathBuf>,
+    /// Up axis of the avatar, garment and motion files: auto (detected from a skeleton or an
+    /// OBJ's shape), y or z (turned Y up); a scene file's own `up` on a source wins.
+    #[arg(long, default_value = "auto")]
+    pub up: neural_cloth::io::UpAxis,
     /// Train for this many minutes.
     #[arg(long)]
     pub minutes: Option<f64>,
@@ -150,6 +155,20 @@ pub struct TrainArgs {
     pub dead_limit: Option<f64>,
 }
 
+impl TrainArgs {
+    /// The scene parts the flags name.
+    fn scene_args(&self) -> SceneArgs<'_> {
+        SceneArgs {
+            scene: self.scene.as_deref(),
+            avatar: self.avatar.as_deref(),
+            garment: self.garment.as_deref(),
+            motions: self.motions.as_deref(),
+            joint_map: self.joint_map.as_deref(),
+            up: self.up,
+        }
+    }
+}
+
 /// The backend choice on the command line.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum Backend {
@@ -157,133 +176,6 @@ pub enum Backend {
     Cpu,
     /// burn-wgpu (a GPU).
     Wgpu,
-}
-
-/// The scene and its (absolute-path) description from the arguments.
-pub fn scene_from_args(
-    scene: Option<&Path>,
-    avatar: Option<&Path>,
-    garment: Option<&Path>,
-    motions: Option<&Path>,
-    joint_map: Option<&Path>,
-) -> anyhow::Result<(neural_cloth::scene::Scene, SceneConfig)> {
-    let (config, dir) = scene_config_from_args(scene, avatar, garment, motions, joint_map)?;
-    let loaded = match scene {
-        Some(p) if avatar.is_none() && motions.is_none() && joint_map.is_none() => {
-            load_scene_file(p)?
-        }
-        _ => load_scene(&config, &dir, scene.unwrap_or(Path::new("command line")))?,
-    };
-    for w in &loaded.warnings {
-        eprintln!("warning: {w}");
-    }
-    Ok((loaded.scene, config))
-}
-
-/// The scene description the arguments make (file paths absolute) and the folder its
-/// relative paths were resolved against.
-fn scene_config_from_args(
-    scene: Option<&Path>,
-    avatar: Option<&Path>,
-    garment: Option<&Path>,
-    motions: Option<&Path>,
-    joint_map: Option<&Path>,
-) -> anyhow::Result<(SceneConfig, PathBuf)> {
-    let (mut config, dir) = match scene {
-        Some(path) => {
-            let config =
-                SceneConfig::load(path).with_context(|| format!("reading {}", path.display()))?;
-            (
-                config,
-                path.parent().map(Path::to_path_buf).unwrap_or_default(),
-            )
-        }
-        None => (SceneConfig::default_scene(), std::env::current_dir()?),
-    };
-    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    if let (Some(a), Some(g)) = (avatar, garment) {
-        config.avatar = if a == Path::new("mannequin") && !a.exists() {
-            AvatarSource::Builtin {
-                builtin: neural_cloth::scene::config::BuiltinAvatar::Mannequin,
-            }
-        } else {
-            AvatarSource::File {
-                path: abs(a),
-                units: None,
-            }
-        };
-        config.garment = GarmentSource::File {
-            path: abs(g),
-            units: None,
-            smoothing_passes: None,
-        };
-    }
-    if let Some(dir) = motions {
-        let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-            .with_context(|| format!("listing {}", dir.display()))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| {
-                p.extension().is_some_and(|e| {
-                    e.eq_ignore_ascii_case("bvh")
-                        || e.eq_ignore_ascii_case("glb")
-                        || e.eq_ignore_ascii_case("gltf")
-                })
-            })
-            .collect();
-        files.sort();
-        anyhow::ensure!(
-            !files.is_empty(),
-            "no BVH or glTF motions in {}",
-            dir.display()
-        );
-        config.motions = files
-            .iter()
-            .enumerate()
-            .map(|(k, p)| MotionSource::File {
-                path: abs(p),
-                units: None,
-                split: folder_split(k, files.len()),
-                name: None,
-                joint_map: None,
-            })
-            .collect();
-        if files.len() == 1 {
-            eprintln!(
-                "warning: one motion in {}: it trains, and no motion is left to validate or \
-                 test (eval --split train)",
-                dir.display()
-            );
-        }
-    }
-    if let Some(map) = joint_map {
-        for m in &mut config.motions {
-            if let MotionSource::File { joint_map, .. } = m
-                && joint_map.is_none()
-            {
-                *joint_map = Some(abs(map));
-            }
-        }
-    }
-    // Paths stored in the run must not depend on the working directory.
-    let resolve = |p: &Path| abs(&SceneConfig::resolve_path(&dir, p));
-    if let AvatarSource::File { path, .. } = &mut config.avatar {
-        *path = resolve(path);
-    }
-    if let GarmentSource::File { path, .. } = &mut config.garment {
-        *path = resolve(path);
-    }
-    for m in &mut config.motions {
-        if let MotionSource::File {
-            path, joint_map, ..
-        } = m
-        {
-            *path = resolve(path);
-            if let Some(map) = joint_map {
-                *map = resolve(map);
-            }
-        }
-    }
-    Ok((config, dir))
 }
 
 /// The scene a resumed run recorded and its training settings; refused when a scene given
@@ -294,19 +186,10 @@ fn resumed_scene(
 ) -> anyhow::Result<(neural_cloth::scene::Scene, SceneConfig, TrainConfig)> {
     let run = RunDir::open(dir)?;
     let meta = run.meta()?;
-    if args.scene.is_some()
-        || args.avatar.is_some()
-        || args.motions.is_some()
-        || args.joint_map.is_some()
-    {
+    let scene_args = args.scene_args();
+    if args.scene.is_some() || scene_args.edits_scene() {
         let recorded = resume::recorded_config(&run)?;
-        let (given, _) = scene_config_from_args(
-            args.scene.as_deref(),
-            args.avatar.as_deref(),
-            args.garment.as_deref(),
-            args.motions.as_deref(),
-            args.joint_map.as_deref(),
-        )?;
+        let (given, _) = scene_config_from_args(&scene_args)?;
         if let Some(difference) = resume::scene_difference(&recorded, &given)? {
             bail!(
                 "the given scene differs from the one the run was trained on ({difference}); \
@@ -327,13 +210,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let (scene, scene_config, mut train) = match &args.resume {
         Some(dir) => resumed_scene(dir, &args)?,
         None => {
-            let (scene, config) = scene_from_args(
-                args.scene.as_deref(),
-                args.avatar.as_deref(),
-                args.garment.as_deref(),
-                args.motions.as_deref(),
-                args.joint_map.as_deref(),
-            )?;
+            let (scene, config) = scene_from_args(&args.scene_args())?;
             let train = TrainConfig {
                 fps: scene.training_fps,
                 ..Default::default()
@@ -380,7 +257,6 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     if let Some(p) = args.predrape_secs {
         train.predrape_secs = p;
     }
-                r.slip_mm,
     model.basis_bias = !args.no_basis_bias;
     model.normalise_dynamic_input = args.scale_dynamic_input;
     if let Some(on) = args.dynamic_basis {
@@ -496,7 +372,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
                 ));
             }
             TrainEvent::Validation(r) => say(format!(
-                "validation @ {}: loss {:.4} strain {:.4} bending {:.3} collision {:.2}% gravity {:.4} inertia {:.5} dead units {:.0}%",
+                "validation @ {}: loss {:.4} strain {:.4} bending {:.3} collision {:.2}% gravity {:.4} inertia {:.5} slip {:.2} mm dead units {:.0}%",
                 r.step,
                 r.loss,
                 r.strain,
@@ -504,6 +380,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
                 r.collision_pct,
                 r.gravity,
                 r.inertia,
+                r.slip_mm,
                 r.dead_units_pct
             )),
             TrainEvent::Warning(w) => say(format!("warning: {w}")),

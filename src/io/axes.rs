@@ -7,26 +7,17 @@
 //! extent is well over its Y extent lies Z up, [`UpAxis::detect`]). A glTF mesh without a
 //! skin is Y up as the format says unless told otherwise. Z-up files are turned Y up by
 //! Blender's own glTF convention: `(x, y, z) -> (x, z, -y)` (the -Y forward of a Z-up scene
-//! becomes +Z).
+//! becomes +Z). The setting itself ([`UpAxis`]) lives in the scene layer, where scene files
+//! record it per file source; this module adds its detection.
 
 use super::joint_structure::{RigShape, label_by_structure};
-use crate::geometry::{Quat, Vec3};
+use crate::geometry::Vec3;
+
+pub use crate::scene::UpAxis;
 
 /// How much deeper along Z than tall along Y a file must be to be detected Z up. Garments
 /// and bodies made Y up are 0.2 to 0.6 times as deep as tall, so 1.5 leaves them alone.
 const Z_OVER_Y: f32 = 1.5;
-
-/// Which axis of a file points up.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum UpAxis {
-    /// Detect from the shape (see [`UpAxis::detect`]).
-    #[default]
-    Auto,
-    /// Y up (glTF, most game and DCC exports).
-    Y,
-    /// Z up (3ds Max, Blender scenes, some motion capture).
-    Z,
-}
 
 impl UpAxis {
     /// Z when the points' extent along Z is over 1.5 times their extent along Y, else Y (also
@@ -89,63 +80,19 @@ impl UpAxis {
         }
     }
 
-    /// The rotation that turns this axis's coordinates Y up: identity for Y (and Auto), -90
-    /// degrees about X for Z.
-    pub fn to_y_up(self) -> Quat {
-        match self {
-            UpAxis::Z => Quat::from_axis_angle(&Vec3::x_axis(), -std::f32::consts::FRAC_PI_2),
-            UpAxis::Y | UpAxis::Auto => Quat::identity(),
-        }
-    }
-
-    /// Short name: `auto`, `Y` or `Z`.
-    pub fn label(self) -> &'static str {
-        match self {
-            UpAxis::Auto => "auto",
-            UpAxis::Y => "Y",
-            UpAxis::Z => "Z",
-        }
-    }
-
     /// The warning an importer gives when it detected Z up and turned the file.
     pub fn turned_warning(self, detected: bool) -> Option<String> {
         (self == UpAxis::Z && detected).then(|| {
-            "Z up detected (the model stands along Z); turned Y up (--up y keeps it as it is)"
+            "Z up detected (the model stands along Z); turned Y up (--up y, or up = \"y\" on the \
+             scene file's source, keeps it as it is)"
                 .to_string()
         })
-    }
-}
-
-impl std::str::FromStr for UpAxis {
-    type Err = String;
-
-    /// `auto`, `y` or `z` (any case; `+y`, `+z`, `y-up`, `z-up` too).
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s
-            .to_ascii_lowercase()
-            .trim_start_matches('+')
-            .trim_end_matches("-up")
-        {
-            "auto" => Ok(UpAxis::Auto),
-            "y" => Ok(UpAxis::Y),
-            "z" => Ok(UpAxis::Z),
-            other => Err(format!("unknown up axis '{other}' (auto, y or z)")),
-        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn z_up_turns_to_y_up_with_minus_y_forward_becoming_z() {
-        let r = UpAxis::Z.to_y_up();
-        assert!((r * Vec3::z() - Vec3::y()).norm() < 1e-6);
-        assert!((r * -Vec3::y() - Vec3::z()).norm() < 1e-6);
-        assert!((r * Vec3::x() - Vec3::x()).norm() < 1e-6);
-        assert_eq!(UpAxis::Y.to_y_up(), Quat::identity());
-    }
 
     #[test]
     fn a_standing_shape_is_detected_either_way() {
@@ -158,14 +105,5 @@ mod tests {
         assert_eq!(UpAxis::Auto.resolve(&lying), (UpAxis::Z, true));
         assert!(UpAxis::Z.turned_warning(true).is_some());
         assert!(UpAxis::Z.turned_warning(false).is_none());
-    }
-
-    #[test]
-    fn up_axes_parse() {
-        assert_eq!("Z".parse::<UpAxis>(), Ok(UpAxis::Z));
-        assert_eq!("+y".parse::<UpAxis>(), Ok(UpAxis::Y));
-        assert_eq!("z-up".parse::<UpAxis>(), Ok(UpAxis::Z));
-        assert_eq!("auto".parse::<UpAxis>(), Ok(UpAxis::Auto));
-        assert!("x".parse::<UpAxis>().unwrap_err().contains("auto, y or z"));
     }
 }

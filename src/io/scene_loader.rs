@@ -13,8 +13,8 @@ use crate::scene::procedural::{builtin_garment, builtin_motion, mannequin};
 use crate::scene::{Avatar, Garment, GarmentOptions, Motion, Scene, SceneError};
 
 use super::{
-    ImportOptions, IoError, JointMap, RetargetOptions, SourceMotion, Units, load_avatar, load_bvh,
-    load_gltf_mesh, load_obj, retarget, retarget_bvh,
+    ImportOptions, IoError, JointMap, RetargetOptions, SourceMotion, Units, UpAxis, load_avatar,
+    load_bvh, load_gltf_mesh, load_obj, retarget, retarget_bvh,
 };
 
 /// A loaded scene and the importers' warnings.
@@ -95,7 +95,7 @@ impl<'a> SceneLoader<'a> {
     pub fn avatar(&self, warnings: &mut Vec<String>) -> Result<Avatar, IoError> {
         match &self.config.avatar {
             AvatarSource::Builtin { .. } => mannequin().map_err(|e| self.scene_error(e)),
-            AvatarSource::File { path, units } => {
+            AvatarSource::File { path, units, up } => {
                 let file = self.resolve(path);
                 match extension(&file).as_str() {
                     "glb" | "gltf" => {}
@@ -109,7 +109,7 @@ impl<'a> SceneLoader<'a> {
                 let options = ImportOptions {
                     units: units_of(*units),
                     fps: self.config.training_fps,
-                    ..Default::default()
+                    up: *up,
                 };
                 let loaded = load_avatar(&file, &options)?;
                 warnings.extend(note_all(&file, &loaded.warnings));
@@ -145,10 +145,16 @@ impl<'a> SceneLoader<'a> {
             GarmentSource::File {
                 path,
                 units,
+                up,
                 smoothing_passes,
             } => {
                 let file = self.resolve(path);
-                load_garment(&file, avatar, units_of(*units), *smoothing_passes, warnings)
+                let options = ImportOptions {
+                    units: units_of(*units),
+                    up: *up,
+                    ..Default::default()
+                };
+                load_garment(&file, avatar, &options, *smoothing_passes, warnings)
             }
         }
     }
@@ -198,6 +204,7 @@ impl<'a> SceneLoader<'a> {
             MotionSource::File {
                 path,
                 units,
+                up,
                 name,
                 joint_map,
                 ..
@@ -209,6 +216,7 @@ impl<'a> SceneLoader<'a> {
                     .transpose()?;
                 let how = MotionImport {
                     units: units_of(*units),
+                    up: *up,
                     fps,
                     only: name.as_deref(),
                     joint_map: joint_map.as_ref(),
@@ -244,23 +252,19 @@ fn note_all(file: &Path, warnings: &[String]) -> Vec<String> {
         .collect()
 }
 
-/// Loads a garment template (OBJ, glTF or GLB by extension) and fits it to `avatar` with
-/// `smoothing_passes` of skin-weight smoothing (default: [`GarmentOptions::for_name`] of the
-/// garment's name).
+/// Loads a garment template (OBJ, glTF or GLB by extension) read with `options` (units, up
+/// axis) and fits it to `avatar` with `smoothing_passes` of skin-weight smoothing (default:
+/// [`GarmentOptions::for_name`] of the garment's name).
 pub fn load_garment(
     file: &Path,
     avatar: &Avatar,
-    units: Units,
+    options: &ImportOptions,
     smoothing_passes: Option<usize>,
     warnings: &mut Vec<String>,
 ) -> Result<Garment, IoError> {
-    let options = ImportOptions {
-        units,
-        ..Default::default()
-    };
     let loaded = match extension(file).as_str() {
-        "obj" => load_obj(file, &options)?,
-        "gltf" | "glb" => load_gltf_mesh(file, &options)?,
+        "obj" => load_obj(file, options)?,
+        "gltf" | "glb" => load_gltf_mesh(file, options)?,
         other => {
             return Err(IoError::UnsupportedFormat {
                 extension: other.into(),
@@ -298,6 +302,9 @@ pub struct MotionImport<'a> {
     /// Length unit of a glTF file ([`Units::Auto`]: detected); BVH lengths are scaled by
     /// the ratio of leg lengths.
     pub units: Units,
+    /// Up axis of the file ([`UpAxis::Auto`]: detected from its rig); a Z-up rig is turned Y
+    /// up before retargeting.
+    pub up: UpAxis,
     /// Frame rate of the motions, frames per second.
     pub fps: f32,
     /// Only the animation of this name (glTF files hold several).
@@ -323,7 +330,8 @@ pub fn load_motions(
     let note = |w: &String| format!("{}: {w}", file.display());
     let mut motions = match extension(file).as_str() {
         "bvh" => {
-            let bvh = load_bvh(file)?;
+            let mut bvh = load_bvh(file)?;
+            bvh.up = how.up;
             let (mut motion, w) = retarget_bvh(&bvh, &avatar.skeleton, &options)?;
             warnings.extend(w.iter().map(note));
             motion.name = file
@@ -338,7 +346,7 @@ pub fn load_motions(
                 &ImportOptions {
                     units: how.units,
                     fps: how.fps,
-                    ..Default::default()
+                    up: how.up,
                 },
             )?;
             warnings.extend(loaded.warnings.iter().map(note));

@@ -516,6 +516,7 @@ name = "Run"
         c.avatar = AvatarSource::File {
             path: "x.glb".into(),
             units: None,
+            up: crate::scene::UpAxis::Auto,
         };
         assert!(
             c.validate()

@@ -6,11 +6,13 @@ pub mod avatar;
 pub mod garment;
 pub mod motion;
 pub mod skeleton;
+pub mod up_axis;
 
 pub use avatar::Avatar;
 pub use garment::{Garment, GarmentOptions};
 pub use motion::Motion;
 pub use skeleton::{JointTransform, Pose, Skeleton};
+pub use up_axis::UpAxis;
 
 use crate::geometry::MeshError;
 

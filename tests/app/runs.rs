@@ -225,6 +225,7 @@ fn a_project_shows_a_runs_weights_only_on_the_garment_skin_it_was_trained_on() {
     project_scene.garment = GarmentSource::File {
         path: garment.clone(),
         units: None,
+        up: neural_cloth::scene::UpAxis::Auto,
         smoothing_passes: None,
     };
     ProjectFile {

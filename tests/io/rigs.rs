@@ -161,6 +161,7 @@ fn renamed(rig: &Rig) -> Vec<String> {
 pub(super) fn import(fps: f32, joint_map: Option<&JointMap>) -> MotionImport<'_> {
     MotionImport {
         units: Units::Auto,
+        up: neural_cloth::io::UpAxis::Auto,
         fps,
         only: None,
         joint_map,

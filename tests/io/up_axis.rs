@@ -21,7 +21,7 @@ use neural_cloth::scene::{Avatar, Motion, Pose, Skeleton};
 use super::rigs::{import, max_joint_error, write_bvh};
 
 /// The rotation that lays a Y-up model down Z up (the inverse of the importers' turn).
-fn to_z_up() -> Quat {
+pub(super) fn to_z_up() -> Quat {
     UpAxis::Z.to_y_up().inverse()
 }
 
@@ -47,7 +47,7 @@ fn z_up_bvh_rig(sk: &Skeleton, motion: &Motion) -> (Skeleton, Motion) {
 
 /// `sk` and `motion` turned by `r` with identity rest rotations (as BVH needs): every offset
 /// turned, every rotation conjugated, so every joint lands at `r` times where it was.
-fn turned_bvh_rig(sk: &Skeleton, motion: &Motion, r: Quat) -> (Skeleton, Motion) {
+pub(super) fn turned_bvh_rig(sk: &Skeleton, motion: &Motion, r: Quat) -> (Skeleton, Motion) {
     let mut z = sk.clone();
     for t in &mut z.rest_local {
         t.translation = r * t.translation;
@@ -102,7 +102,7 @@ fn a_z_up_bvh_is_turned_y_up_named_or_not() {
 }
 
 /// The mannequin laid down Z up: root rest, inverse bind matrices and bind mesh turned.
-fn z_up_avatar(avatar: &Avatar) -> Avatar {
+pub(super) fn z_up_avatar(avatar: &Avatar) -> Avatar {
     let r = to_z_up();
     let mut sk = z_up_skeleton(&avatar.skeleton);
     let back: Mat4 = r.inverse().to_homogeneous();

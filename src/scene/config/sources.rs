@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
+use super::super::UpAxis;
 use super::super::procedural::{GarmentKind, MotionKind};
 use super::{Split, default_duration, default_resolution};
 
@@ -54,12 +55,15 @@ pub enum AvatarSource {
         /// Which one.
         builtin: BuiltinAvatar,
     },
-    /// A skinned glTF/GLB file: `path = "avatars/body.glb"`, optional `units`.
+    /// A skinned glTF/GLB file: `path = "avatars/body.glb"`, optional `units` and `up`.
     File {
         /// Path, relative to the config file's folder.
         path: PathBuf,
         /// Unit of the file's lengths; default: the file's own (glTF: metres).
         units: Option<LengthUnit>,
+        /// Up axis of the file (`up = "z"` turns a Z-up file Y up); default auto: detected
+        /// from the skeleton.
+        up: UpAxis,
     },
 }
 
@@ -79,13 +83,16 @@ pub enum GarmentSource {
         /// (5 for the t-shirt, 30 for skirt and dress).
         smoothing_passes: Option<usize>,
     },
-    /// A garment file (OBJ or glTF) in the avatar's rest pose: `path`, optional `units` and
-    /// `smoothing_passes`.
+    /// A garment file (OBJ or glTF) in the avatar's rest pose: `path`, optional `units`, `up`
+    /// and `smoothing_passes`.
     File {
         /// Path, relative to the config file's folder.
         path: PathBuf,
         /// Unit of the file's lengths; default: metres for glTF, guessed for OBJ.
         units: Option<LengthUnit>,
+        /// Up axis of the file; default auto: an OBJ's detected from its shape, a glTF mesh Y
+        /// up as the format says.
+        up: UpAxis,
         /// Skin-weight smoothing passes, 0..=200; default by the garment's name
         /// (`GarmentOptions::for_name`: 30 when it says skirt, dress, gown or robe, else 3).
         smoothing_passes: Option<usize>,
@@ -113,12 +120,14 @@ pub enum MotionSource {
         name: Option<String>,
     },
     /// A motion file (BVH, or the animations of a glTF/GLB file): `path`, optional `units`,
-    /// `split`, `name`, `joint_map`.
+    /// `up`, `split`, `name`, `joint_map`.
     File {
         /// Path, relative to the config file's folder.
         path: PathBuf,
         /// Unit of the file's lengths; default: the file's own (BVH: guessed from the height).
         units: Option<LengthUnit>,
+        /// Up axis of the file; default auto: detected from the rig.
+        up: UpAxis,
         /// Data split, default "train".
         split: Split,
         /// Animation to take from a file holding several; default: all of them (each keeps
@@ -140,6 +149,8 @@ struct RawSource {
     path: Option<PathBuf>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     units: Option<LengthUnit>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    up: Option<UpAxis>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     resolution: Option<usize>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -174,6 +185,7 @@ impl RawSource {
         }
         let set = [
             ("units", self.units.is_some()),
+            ("up", self.up.is_some()),
             ("resolution", self.resolution.is_some()),
             ("smoothing_passes", self.smoothing_passes.is_some()),
             ("duration_secs", self.duration_secs.is_some()),
@@ -200,6 +212,12 @@ impl RawSource {
     }
 }
 
+/// The `up` a file source writes: none for auto (the default, so files written before the
+/// setting existed and files written now read the same).
+fn written(up: UpAxis) -> Option<UpAxis> {
+    (up != UpAxis::Auto).then_some(up)
+}
+
 fn unknown(what: &str, name: &str, expected: &str) -> String {
     format!("unknown built-in {what} \"{name}\" (expected one of {expected})")
 }
@@ -219,10 +237,11 @@ impl TryFrom<RawSource> for AvatarSource {
                 }
             }
             (_, path) => {
-                raw.check("avatar", expected, &["units"])?;
+                raw.check("avatar", expected, &["units", "up"])?;
                 Ok(Self::File {
                     path: path.unwrap_or_default(),
                     units: raw.units,
+                    up: raw.up.unwrap_or_default(),
                 })
             }
         }
@@ -236,9 +255,10 @@ impl From<AvatarSource> for RawSource {
                 builtin: Some("mannequin".into()),
                 ..Self::default()
             },
-            AvatarSource::File { path, units } => Self {
+            AvatarSource::File { path, units, up } => Self {
                 path: Some(path),
                 units,
+                up: written(up),
                 ..Self::default()
             },
         }
@@ -262,10 +282,11 @@ impl TryFrom<RawSource> for GarmentSource {
                 })
             }
             (_, path) => {
-                raw.check("garment", expected, &["units", "smoothing_passes"])?;
+                raw.check("garment", expected, &["units", "up", "smoothing_passes"])?;
                 Ok(Self::File {
                     path: path.unwrap_or_default(),
                     units: raw.units,
+                    up: raw.up.unwrap_or_default(),
                     smoothing_passes: raw.smoothing_passes,
                 })
             }
@@ -289,10 +310,12 @@ impl From<GarmentSource> for RawSource {
             GarmentSource::File {
                 path,
                 units,
+                up,
                 smoothing_passes,
             } => Self {
                 path: Some(path),
                 units,
+                up: written(up),
                 smoothing_passes,
                 ..Self::default()
             },
@@ -325,10 +348,15 @@ impl TryFrom<RawSource> for MotionSource {
                 })
             }
             (_, path) => {
-                raw.check("motion", expected, &["units", "split", "name", "joint_map"])?;
+                raw.check(
+                    "motion",
+                    expected,
+                    &["units", "up", "split", "name", "joint_map"],
+                )?;
                 Ok(Self::File {
                     path: path.unwrap_or_default(),
                     units: raw.units,
+                    up: raw.up.unwrap_or_default(),
                     split,
                     name: raw.name,
                     joint_map: raw.joint_map,
@@ -360,12 +388,14 @@ impl From<MotionSource> for RawSource {
             MotionSource::File {
                 path,
                 units,
+                up,
                 split,
                 name,
                 joint_map,
             } => Self {
                 path: Some(path),
                 units,
+                up: written(up),
                 split: Some(split),
                 name,
                 joint_map,
@@ -381,5 +411,65 @@ impl MotionSource {
         match self {
             MotionSource::Builtin { split, .. } | MotionSource::File { split, .. } => *split,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::SceneConfig;
+    use super::*;
+
+    /// A scene of Z-up files, as a user writes it.
+    const Z_UP: &str = r#"name = "z-up files"
+avatar = { path = "body.glb", up = "z" }
+garment = { path = "skirt.obj", up = "Z", units = "cm" }
+[[motions]]
+path = "walk.bvh"
+up = "y"
+[[motions]]
+path = "run.bvh"
+"#;
+
+    #[test]
+    fn the_up_axis_of_file_sources_round_trips_through_toml() {
+        let c = SceneConfig::from_toml_str(Z_UP).unwrap();
+        assert!(matches!(c.avatar, AvatarSource::File { up: UpAxis::Z, .. }));
+        assert!(matches!(
+            c.garment,
+            GarmentSource::File {
+                up: UpAxis::Z,
+                units: Some(LengthUnit::Centimetres),
+                ..
+            }
+        ));
+        assert!(matches!(
+            c.motions[0],
+            MotionSource::File { up: UpAxis::Y, .. }
+        ));
+        // Left out, the axis is detected (auto), and auto is not written back.
+        assert!(matches!(
+            c.motions[1],
+            MotionSource::File {
+                up: UpAxis::Auto,
+                ..
+            }
+        ));
+        let text = c.to_toml_string().unwrap();
+        assert_eq!(text.matches("up = ").count(), 3, "{text}");
+        assert!(text.contains("up = \"z\""), "{text}");
+        assert_eq!(SceneConfig::from_toml_str(&text).unwrap(), c);
+    }
+
+    #[test]
+    fn up_on_a_built_in_source_or_an_unknown_axis_is_refused() {
+        let err = SceneConfig::from_toml_str(
+            "name = \"x\"\navatar = { builtin = \"mannequin\", up = \"z\" }\n\
+             garment = { builtin = \"tshirt\" }\n[[motions]]\nbuiltin = \"walk\"\n",
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("`up` does not apply"), "{err}");
+        let err =
+            SceneConfig::from_toml_str(&Z_UP.replace("up = \"y\"", "up = \"x\"")).unwrap_err();
+        assert!(err.to_string().contains("unknown variant"), "{err}");
     }
 }
