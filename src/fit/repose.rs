@@ -34,6 +34,9 @@ const NEAR_M: f32 = 0.03;
 const ARM_WEIGHT: f32 = 0.5;
 /// Smoothing passes of the skin weights carried from the posed body to the garment.
 const SMOOTHING_PASSES: usize = 10;
+/// A joint whose skinning matrix from the rest pose to the pose differs from the identity by
+/// more than this in an entry is moved by the pose.
+const MOVED_EPS: f32 = 1e-6;
 
 /// The avatar's upper arms: per side, the upper-arm joint and its bone's rest direction, and
 /// which body vertices the upper arms carry.
@@ -91,6 +94,25 @@ impl Arms {
             ],
             on_arm,
         })
+    }
+
+    /// The joints [`Arms::pose`] moves: both upper arms and every joint below them.
+    pub fn moved_joints(&self, sk: &crate::scene::Skeleton) -> Vec<bool> {
+        let mut moved = vec![false; sk.len()];
+        for (joint, _) in self.sides {
+            if let Some(m) = moved.get_mut(joint) {
+                *m = true;
+            }
+        }
+        // Parents come before their children.
+        for j in 0..sk.len() {
+            if let Some(p) = sk.parents[j]
+                && moved[p]
+            {
+                moved[j] = true;
+            }
+        }
+        moved
     }
 
     /// Share of `weights` of the garment vertices `placed` that lie around the upper arms of
@@ -224,25 +246,34 @@ pub(super) fn repose_given(
 /// Carries `mesh`'s vertices, made around the avatar at `pose`, back to the avatar's rest
 /// pose: each vertex is bound to the posed body (nearest vertex's skin weights, smoothed
 /// over the mesh's edges) and moved by the inverse of its blended joint motion from the rest
-/// pose to `pose`. A vertex whose blended motion cannot be inverted stays where it is.
+/// pose to `pose`. Only the parts around the joints `pose` moves are carried (a shirt's
+/// sleeves when the arms moved): a vertex whose nearest posed body vertex has no weight on a
+/// moved joint stays exactly where it is, however the smoothing spread the weights, so the
+/// torso of a shirt is untouched. A vertex whose blended motion cannot be inverted stays
+/// where it is too.
 pub fn unpose(avatar: &Avatar, pose: &Pose, mesh: &TriMesh) -> Result<Vec<Vec3>, FitError> {
     let body = avatar.pose_vertices(pose);
-    let options = GarmentOptions {
-        smoothing_passes: SMOOTHING_PASSES,
-        max_distance_m: 5.0,
+    let topology = Topology::new(mesh);
+    let bind = |smoothing_passes: usize| {
+        let options = GarmentOptions {
+            smoothing_passes,
+            max_distance_m: 5.0,
+        };
+        transfer_skin_weights(
+            &body,
+            &avatar.skin,
+            &mesh.positions,
+            &topology,
+            &options,
+            "garment",
+        )
+        .map_err(|e| FitError::Body {
+            avatar: avatar.name.clone(),
+            reason: e.to_string(),
+        })
     };
-    let skin = transfer_skin_weights(
-        &body,
-        &avatar.skin,
-        &mesh.positions,
-        &Topology::new(mesh),
-        &options,
-        "garment",
-    )
-    .map_err(|e| FitError::Body {
-        avatar: avatar.name.clone(),
-        reason: e.to_string(),
-    })?;
+    let skin = bind(SMOOTHING_PASSES)?;
+    let nearest = bind(0)?;
     let sk = &avatar.skeleton;
     let to_rest: Vec<Mat4> = sk
         .skin_from_bind(&sk.rest_pose())
@@ -250,11 +281,24 @@ pub fn unpose(avatar: &Avatar, pose: &Pose, mesh: &TriMesh) -> Result<Vec<Vec3>,
         .zip(sk.skin_from_bind(pose))
         .map(|(rest, posed)| posed * rest.try_inverse().unwrap_or_else(Mat4::identity))
         .collect();
+    let moved: Vec<bool> = to_rest
+        .iter()
+        .map(|m| (m - Mat4::identity()).amax() > MOVED_EPS)
+        .collect();
+    let on_moved = |joints: &[u16], weights: &[f32]| {
+        joints
+            .iter()
+            .zip(weights)
+            .any(|(j, w)| *w > 0.0 && moved.get(usize::from(*j)).copied().unwrap_or(false))
+    };
     Ok(mesh
         .positions
         .iter()
         .enumerate()
         .map(|(v, p)| {
+            if !on_moved(&nearest.joints[v], &nearest.weights[v]) {
+                return *p;
+            }
             let mut blend = Mat4::zeros();
             for (j, w) in skin.joints[v].iter().zip(skin.weights[v]) {
                 if let Some(m) = to_rest.get(usize::from(*j)) {
@@ -305,5 +349,70 @@ mod tests {
         let (angle, ..) =
             sleeve_angle(&avatar, &arms, &shirt.mesh.positions, &weights, 0.015).unwrap();
         assert_eq!(angle, 0.0);
+    }
+
+    /// Share of each vertex's weights in `skin` on the joints of `moved`.
+    fn share_on(skin: &crate::geometry::SkinWeights, moved: &[bool]) -> Vec<f32> {
+        skin.joints
+            .iter()
+            .zip(&skin.weights)
+            .map(|(js, ws)| {
+                js.iter()
+                    .zip(ws)
+                    .filter(|(j, _)| moved[usize::from(**j)])
+                    .map(|(_, w)| w)
+                    .sum()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn reposing_a_t_posed_shirt_moves_its_sleeves_only() {
+        let avatar = mannequin().unwrap();
+        let sk = &avatar.skeleton;
+        let arms = Arms::of(&avatar).unwrap();
+        let t_pose = arms.pose(&avatar, 42.0);
+        let moved = arms.moved_joints(sk);
+        let shirt = builtin_garment(&avatar, GarmentKind::TShirt, 1200, None).unwrap();
+        let t_shirt = shirt.pose_vertices(&avatar, &t_pose);
+        let mut mesh = shirt.mesh.clone();
+        mesh.positions = t_shirt.clone();
+        let back = unpose(&avatar, &t_pose, &mesh).unwrap();
+        // The torso: the shirt's vertices with no weight on the upper arms or below. Posing
+        // the arms did not move them, and re-posing must not either.
+        let share = share_on(&shirt.skin, &moved);
+        let mut torso = 0;
+        let mut worst = 0.0f32;
+        for v in 0..back.len() {
+            if share[v] == 0.0 {
+                torso += 1;
+                worst = worst.max((back[v] - t_shirt[v]).norm());
+            }
+        }
+        assert!(torso > back.len() / 3, "{torso} of {}", back.len());
+        assert!(worst <= 1e-6, "a torso vertex moved {worst} m");
+        // The sleeve tips (the vertices farthest out along each arm, all but 1 % of their
+        // weight on it) turn back down by the 42 degrees the arms were raised, about the
+        // shoulder: to where the A-pose shirt had them.
+        let rest = sk.joint_positions(&sk.rest_pose());
+        for (joint, _) in arms.sides {
+            let side = rest[joint].x.signum();
+            let out = |v: usize| (shirt.mesh.positions[v] - rest[joint]).norm();
+            let tip = (0..back.len())
+                .filter(|&v| share[v] > 0.99 && shirt.mesh.positions[v].x * side > 0.0)
+                .max_by(|&a, &b| out(a).total_cmp(&out(b)))
+                .unwrap();
+            let (a, t, b) = (shirt.mesh.positions[tip], t_shirt[tip], back[tip]);
+            let turned = (t - rest[joint]).angle(&(b - rest[joint])).to_degrees();
+            assert!(
+                (turned - 42.0).abs() < 1.0,
+                "tip {tip} turned {turned} degrees"
+            );
+            assert!(
+                (t - a).norm() > 0.1,
+                "tip {tip} did not move for the T-pose"
+            );
+            assert!((b - a).norm() < 2e-3, "tip {tip}: {b:?} vs {a:?}");
+        }
     }
 }
