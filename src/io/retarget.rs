@@ -14,7 +14,7 @@
 //! is read, see [`Bvh::up_axis`]); a motion whose rig faces another way than the avatar (by
 //! their toes) is first turned about the vertical to face the same way ([`super::facing`]).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use super::bvh::Bvh;
 use super::gltf_avatar::short_list;
@@ -171,77 +171,24 @@ pub fn retarget(
     options: &RetargetOptions,
 ) -> Result<(Motion, Vec<String>), IoError> {
     let fps = check_fps(options.fps, &source.path)?;
-    let path = || source.path.clone();
-    if source.duration_secs() * fps > 2.0e5 {
-        return Err(IoError::Unsupported {
-            what: format!(
-                "a {} s motion (too long to resample at {fps} fps)",
-                source.duration_secs()
-            ),
-            path: path(),
-        });
-    }
-    let n = skeleton.len();
+    check_length(source, fps)?;
     let mapping = joint_mapping(source, skeleton, options.joint_map.as_ref())?;
     mapping.check_essential(&skeleton.names, &source.names, &source.path)?;
     let map = &mapping.source;
     let mut warnings = source.warnings.clone();
-    let turned;
-    let source = match super::facing::turn_to_avatar(
-        source,
-        &skeleton.joint_positions(&skeleton.rest_pose()),
-        &mapping,
-    ) {
-        Some((s, degrees)) => {
-            warnings.push(format!(
-                "the motion's rig faces {:.0} degrees away from the avatar's (its toes point \
-                 elsewhere); turned to face the same way",
-                degrees.abs()
-            ));
-            turned = s;
-            &turned
-        }
-        None => source,
-    };
+    let turned = turn_to_face(source, skeleton, &mapping, &mut warnings);
+    let source = turned.as_ref().unwrap_or(source);
     warnings.extend(mapping_warnings(&mapping, skeleton, source));
 
     // Avatar rest.
-    let rest_pose = skeleton.rest_pose();
-    let rest_world = skeleton.world_from_joint(&rest_pose);
+    let rest_world = skeleton.world_from_joint(&skeleton.rest_pose());
     let mut rest_rot: Vec<Quat> = rest_world.iter().map(rotation_of).collect();
     let rest_pos: Vec<Vec3> = rest_world.iter().map(translation_of).collect();
     if options.align_rest {
         align_rest(source, skeleton, map, &rest_pos, &mut rest_rot);
     }
-    let root_parent_rot: Vec<Quat> = skeleton
-        .world_from_root_parent
-        .iter()
-        .map(rotation_of)
-        .collect();
-
-    let hips_a = hips_joint(&mapping);
-    let Some(hips_b) = hips_a.and_then(|a| map[a]) else {
-        // check_essential refuses a mapping without any joint.
-        return Err(IoError::Unsupported {
-            what: "no avatar joint is mapped".into(),
-            path: path(),
-        });
-    };
-    let hips_a = hips_a.unwrap_or(0);
-
-    // Scale from hip heights above the lowest end joint (leg lengths), both in rest.
-    let src_rest_pos: Vec<Vec3> = source.rest.iter().map(|r| r.1).collect();
-    let (ends_a, ends_b) = (end_joints(&skeleton.parents), end_joints(&source.parents));
-    let height_b =
-        src_rest_pos.get(hips_b).map(|p| p.y).unwrap_or(0.0) - lowest_end(&src_rest_pos, &ends_b);
-    let height_a = rest_pos[hips_a].y - lowest_end(&rest_pos, &ends_a);
-    let scale = if height_a > 1e-6 && height_b > 1e-6 && (height_a / height_b).is_finite() {
-        height_a / height_b
-    } else {
-        let (s, label) = source.fallback_scale;
-        warnings.push(format!("hip heights unusable (avatar {height_a}, motion {height_b}); root translation scaled as {label}"));
-        s
-    };
+    let (hips_a, hips_b) = hips_pair(&mapping, &source.path)?;
+    let scale = leg_scale(source, skeleton, (hips_a, hips_b), &rest_pos, &mut warnings);
     let root = RootPlacement::new(source, skeleton, hips_a, hips_b, scale, &rest_pos, options);
     if root.under_root0.is_none() {
         warnings.push(format!(
@@ -249,6 +196,105 @@ pub fn retarget(
             skeleton.names[hips_a]
         ));
     }
+    let mut frames = retarget_frames(source, skeleton, map, &rest_rot, &root);
+    root.ground(skeleton, &mut frames);
+    let scene_err = |e| IoError::Scene {
+        source: e,
+        path: source.path.clone(),
+    };
+    let native =
+        Motion::new(source.name.clone(), source.fps, frames, skeleton.len()).map_err(scene_err)?;
+    let motion = native.resample(fps).map_err(scene_err)?;
+    Ok((motion, warnings))
+}
+
+/// Refuses a motion too long to resample at `fps`.
+fn check_length(source: &SourceMotion, fps: f32) -> Result<(), IoError> {
+    if source.duration_secs() * fps > 2.0e5 {
+        return Err(IoError::Unsupported {
+            what: format!(
+                "a {} s motion (too long to resample at {fps} fps)",
+                source.duration_secs()
+            ),
+            path: source.path.clone(),
+        });
+    }
+    Ok(())
+}
+
+/// `source` turned about the vertical to face as the avatar does, when its rig faces more
+/// than 45 degrees away (see `io::facing`), with a warning; None when it faces the same way.
+fn turn_to_face(
+    source: &SourceMotion,
+    skeleton: &Skeleton,
+    mapping: &JointMapping,
+    warnings: &mut Vec<String>,
+) -> Option<SourceMotion> {
+    let rest = skeleton.joint_positions(&skeleton.rest_pose());
+    let (turned, degrees) = super::facing::turn_to_avatar(source, &rest, mapping)?;
+    warnings.push(format!(
+        "the motion's rig faces {:.0} degrees away from the avatar's (its toes point \
+         elsewhere); turned to face the same way",
+        degrees.abs()
+    ));
+    Some(turned)
+}
+
+/// The avatar's hips joint and the motion joint mapped to it.
+fn hips_pair(mapping: &JointMapping, path: &Path) -> Result<(usize, usize), IoError> {
+    let hips_a = hips_joint(mapping);
+    let Some(hips_b) = hips_a.and_then(|a| mapping.source[a]) else {
+        // check_essential refuses a mapping without any joint.
+        return Err(IoError::Unsupported {
+            what: "no avatar joint is mapped".into(),
+            path: path.to_path_buf(),
+        });
+    };
+    Ok((hips_a.unwrap_or(0), hips_b))
+}
+
+/// The scale of the motion's root translation: the ratio of hip heights above the lowest end
+/// joint (leg lengths), both in rest; the source's fallback, with a warning, when they are
+/// unusable.
+fn leg_scale(
+    source: &SourceMotion,
+    skeleton: &Skeleton,
+    (hips_a, hips_b): (usize, usize),
+    rest_pos: &[Vec3],
+    warnings: &mut Vec<String>,
+) -> f32 {
+    let src_rest_pos: Vec<Vec3> = source.rest.iter().map(|r| r.1).collect();
+    let (ends_a, ends_b) = (end_joints(&skeleton.parents), end_joints(&source.parents));
+    let height_b =
+        src_rest_pos.get(hips_b).map(|p| p.y).unwrap_or(0.0) - lowest_end(&src_rest_pos, &ends_b);
+    let height_a = rest_pos[hips_a].y - lowest_end(rest_pos, &ends_a);
+    if height_a > 1e-6 && height_b > 1e-6 && (height_a / height_b).is_finite() {
+        height_a / height_b
+    } else {
+        let (s, label) = source.fallback_scale;
+        warnings.push(format!("hip heights unusable (avatar {height_a}, motion {height_b}); root translation scaled as {label}"));
+        s
+    }
+}
+
+/// The avatar's pose in every frame of `source`: each mapped joint takes its motion joint's
+/// world rotation relative to that joint's rest (carried onto the avatar's rest rotation
+/// `rest_rot`), an unmapped joint keeps its rest rotation under its parent; the root placed by
+/// `root`.
+fn retarget_frames(
+    source: &SourceMotion,
+    skeleton: &Skeleton,
+    map: &[Option<usize>],
+    rest_rot: &[Quat],
+    root: &RootPlacement,
+) -> Vec<Pose> {
+    let n = skeleton.len();
+    let rest_pose = skeleton.rest_pose();
+    let root_parent_rot: Vec<Quat> = skeleton
+        .world_from_root_parent
+        .iter()
+        .map(rotation_of)
+        .collect();
     let src_rest_inv: Vec<Quat> = source.rest.iter().map(|r| r.0.inverse()).collect();
     let mut frames = Vec::with_capacity(source.frames.len());
     for w in &source.frames {
@@ -274,14 +320,7 @@ pub fn retarget(
         root.place(skeleton, w, &mut pose);
         frames.push(pose);
     }
-    root.ground(skeleton, &mut frames);
-    let scene_err = |source| IoError::Scene {
-        source,
-        path: path(),
-    };
-    let native = Motion::new(source.name.clone(), source.fps, frames, n).map_err(scene_err)?;
-    let motion = native.resample(fps).map_err(scene_err)?;
-    Ok((motion, warnings))
+    frames
 }
 
 /// What retargeting tells about the mapping: the joints mapped by the skeletons' structure
