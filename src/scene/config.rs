@@ -222,7 +222,8 @@ fn check_motion_values(k: usize, m: &MotionSource) -> Result<(), ConfigError> {
 
 impl SceneConfig {
     /// The built-in default scene: mannequin, t-shirt (about 10K DoF) and all procedural
-    /// motions, split per action (idle/walk/run/jump train, turn validation, spin test).
+    /// motions, split per action (idle/walk/run/jump train, turn validation, spin test); every
+    /// effect but pinning, friction included.
     pub fn default_scene() -> Self {
         let motions = MotionKind::ALL
             .into_iter()
@@ -250,7 +251,12 @@ impl SceneConfig {
                 smoothing_passes: None,
             },
             motions,
-            effects: Effects::default(),
+            // A shirt grips the skin: without friction the simulator's shirt slides around
+            // the running body as a whole (docs/TRAINING.md, rounds 5 and 6).
+            effects: Effects {
+                friction: true,
+                ..Effects::default()
+            },
             fabric: FabricParams::default(),
             training_fps: default_training_fps(),
         }
