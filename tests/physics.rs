@@ -16,8 +16,8 @@ use burn::tensor::{DType, Device};
 use common::*;
 use neural_cloth::geometry::{TriMesh, Vec3};
 use neural_cloth::physics::collision::{self, BodyBatch, Contacts, PosedBody};
-use neural_cloth::physics::shapes::{sheet, tube, uv_sphere};
 use neural_cloth::physics::friction::{self, FrictionContacts};
+use neural_cloth::physics::shapes::{sheet, tube, uv_sphere};
 use neural_cloth::physics::{ClothModel, Effects, FabricParams, Term, energies};
 
 type Energy<'a> = dyn Fn(&burn::tensor::Tensor<3>) -> burn::tensor::Tensor<1> + 'a;
@@ -65,12 +65,18 @@ fn gradients_of_every_energy_match_central_differences_in_f64() {
         let bodies = BodyBatch::new(vec![body]);
         let contacts = Contacts::query(&bodies, &xf, n, &device, dtype).unwrap();
         // The body 1 cm to the side a frame earlier: friction's body motion.
-        let shifted = body_mesh.positions.iter().map(|p| p - Vec3::new(0.01, 0.0, 0.005));
+        let shifted = body_mesh
+            .positions
+            .iter()
+            .map(|p| p - Vec3::new(0.01, 0.0, 0.005));
         let before = BodyBatch::new(vec![Arc::new(
             PosedBody::new(shifted.collect(), &body_mesh.faces).unwrap(),
         )]);
         let fc = FrictionContacts::new(&contacts, &bodies, &before, &[], &rest, &fabric).unwrap();
-        assert!(fc.touching > 0, "seed {seed}: no vertex in the friction band");
+        assert!(
+            fc.touching > 0,
+            "seed {seed}: no vertex in the friction band"
+        );
         let depth: Vec<f64> = {
             let d = collision::signed_distances(&tensor(&x, &device, dtype), &contacts);
             neural_cloth::physics::tensors::read_f64(d).unwrap()

@@ -210,7 +210,11 @@ fn sheet_yaw_on_spinning_sphere(friction: bool, omega: f32, spin_frames: usize) 
     for k in 0..settle + spin_frames {
         let angle = omega * (k.saturating_sub(settle) as f32) / fps;
         let rot = Quat::from_axis_angle(&Vec3::y_axis(), angle);
-        let positions = body0.positions.iter().map(|p| c0 + rot * (p - c0)).collect();
+        let positions = body0
+            .positions
+            .iter()
+            .map(|p| c0 + rot * (p - c0))
+            .collect();
         let body = PosedBody::new(positions, &body0.faces).unwrap();
         let input = StepInput {
             body: Some(Arc::new(body)),
