@@ -33,6 +33,7 @@ pub fn effects_label(e: &Effects) -> String {
         (e.bending, "bending"),
         (e.collision, "collision"),
         (e.dynamics, "dynamics"),
+        (e.friction, "friction"),
     ]
     .iter()
     .filter(|(on, _)| !on)

@@ -340,9 +340,11 @@ fn training_cases(k: usize, batch: usize, variants: bool) -> Vec<TrainCase> {
     }
     let all = default.effects;
     let mut cases = vec![TrainCase::reference_at(batch), burn_adam, default];
+    // Friction acts at contacts between frames: off with collision or dynamics.
     for effects in [
         Effects {
             collision: false,
+            friction: false,
             ..all
         },
         Effects {
@@ -351,6 +353,11 @@ fn training_cases(k: usize, batch: usize, variants: bool) -> Vec<TrainCase> {
         },
         Effects {
             dynamics: false,
+            friction: false,
+            ..all
+        },
+        Effects {
+            friction: false,
             ..all
         },
     ] {

@@ -46,11 +46,12 @@ pub struct TrainCase {
 }
 
 impl TrainCase {
-    /// The default path (fused physics and Adam) at `batch` with every effect of the scene.
+    /// The default path (fused physics and Adam) at `batch` with every effect of the default
+    /// scene (all but pinning, friction included).
     pub fn default_at(batch: usize) -> Self {
         Self {
             batch,
-            effects: Effects::default(),
+            effects: SceneConfig::default_scene().effects,
             fused_physics: true,
             fused_adam: true,
         }
