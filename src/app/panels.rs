@@ -308,6 +308,7 @@ impl NeuralClothApp {
                         .add_enabled(can_rub, egui::Checkbox::new(&mut e.friction, "friction"))
                         .on_disabled_hover_text("friction needs collision and dynamics")
                         .changed();
+                    e.drop_unmet_needs();
                     if changed {
                         // Dynamics changes the network layout of the preview.
                         self.state.preview.reset_scene();

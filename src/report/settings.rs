@@ -135,18 +135,21 @@ fn variants(scene: &Scene, config: &SceneConfig) -> Result<Vec<Variant>, ReportE
         }
     }
     let e = scene.effects;
-    let switches: [(&str, bool, SwitchOff); 4] = [
+    let switches: [(&str, bool, SwitchOff); 5] = [
         ("no gravity", e.gravity, |e| e.gravity = false),
         ("no bending", e.bending, |e| e.bending = false),
         ("no collision", e.collision, |e| e.collision = false),
         ("no dynamics", e.dynamics, |e| e.dynamics = false),
+        ("no friction", e.friction, |e| e.friction = false),
     ];
     for (label, on, switch_off) in switches {
         if on {
             let mut s = scene.clone();
             switch_off(&mut s.effects);
+            s.effects.drop_unmet_needs();
             let mut c = config.clone();
             switch_off(&mut c.effects);
+            c.effects.drop_unmet_needs();
             out.push(Variant {
                 group: "effects",
                 label: label.into(),

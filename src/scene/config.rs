@@ -97,6 +97,17 @@ pub struct Effects {
     pub friction: bool,
 }
 
+impl Effects {
+    /// Switches off the effects whose needs are off: friction acts at body contacts between
+    /// frames, so it goes with collision or dynamics (what an editor or a sweep that turns
+    /// one of those off must call before the scene is validated).
+    pub fn drop_unmet_needs(&mut self) {
+        if !(self.collision && self.dynamics) {
+            self.friction = false;
+        }
+    }
+}
+
 impl Default for Effects {
     fn default() -> Self {
         Self {
@@ -433,6 +444,27 @@ mod tests {
         env!("CARGO_MANIFEST_DIR"),
         "/assets/default-scene.toml"
     ));
+
+    #[test]
+    fn friction_needs_collision_and_dynamics() {
+        let mut c = SceneConfig::default_scene();
+        assert!(c.effects.friction && c.validate().is_ok());
+        c.effects.collision = false;
+        let err = c.validate().unwrap_err().to_string();
+        assert!(err.contains("effects.friction"), "{err}");
+        c.effects.drop_unmet_needs();
+        assert!(!c.effects.friction && c.validate().is_ok());
+        let mut e = Effects {
+            friction: true,
+            dynamics: false,
+            ..Effects::default()
+        };
+        e.drop_unmet_needs();
+        assert!(!e.friction);
+        let mut kept = SceneConfig::default_scene().effects;
+        kept.drop_unmet_needs();
+        assert!(kept.friction, "all needs met: friction stays");
+    }
 
     #[test]
     fn default_asset_matches_code_default() {
