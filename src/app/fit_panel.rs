@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use crate::fit::{FitOptions, fit_file, write_obj};
-use crate::scene::Avatar;
+use crate::scene::{Avatar, UpAxis};
 
 use super::background::{BackgroundJob, poll_job};
 use super::error::AppError;
@@ -33,10 +33,14 @@ pub fn fitted_path(garment: &Path) -> PathBuf {
     garment.with_file_name(format!("{stem}-fitted.obj"))
 }
 
-/// Fits `garment` onto `avatar` with the default options and writes it beside the garment
-/// ([`fitted_path`]). Errors name the file.
-pub fn fit_to_file(avatar: &Avatar, garment: &Path) -> Result<FitOutcome, AppError> {
-    let fitted = fit_file(avatar, garment, &FitOptions::default())?;
+/// Fits `garment` onto `avatar` with the default options and the up axis `up` (the app's Up
+/// axis selector) and writes it beside the garment ([`fitted_path`]). Errors name the file.
+pub fn fit_to_file(avatar: &Avatar, garment: &Path, up: UpAxis) -> Result<FitOutcome, AppError> {
+    let options = FitOptions {
+        up,
+        ..FitOptions::default()
+    };
+    let fitted = fit_file(avatar, garment, &options)?;
     let out = fitted_path(garment);
     write_obj(&fitted, &out)?;
     Ok(FitOutcome {
@@ -57,11 +61,12 @@ impl FitPanel {
         self.job.is_some()
     }
 
-    /// Starts fitting `garment` onto `avatar` on the thread `neural-cloth-fit`.
+    /// Starts fitting `garment` (up axis `up`) onto `avatar` on the thread `neural-cloth-fit`.
     pub fn start(
         &mut self,
         avatar: Arc<Avatar>,
         garment: PathBuf,
+        up: UpAxis,
         notify: Arc<dyn Fn() + Send + Sync>,
     ) -> Result<(), AppError> {
         if self.job.is_some() {
@@ -71,7 +76,7 @@ impl FitPanel {
             "neural-cloth-fit",
             (),
             notify,
-            move |_| fit_to_file(&avatar, &garment),
+            move |_| fit_to_file(&avatar, &garment, up),
         )?);
         Ok(())
     }
@@ -146,7 +151,8 @@ impl super::NeuralClothApp {
                 && let Some(path) = target
             {
                 let avatar = self.state.scene.avatar.clone();
-                if let Err(e) = self.fit.start(avatar, path, self.notifier()) {
+                let up = self.state.typed.up;
+                if let Err(e) = self.fit.start(avatar, path, up, self.notifier()) {
                     self.state.message(Level::Error, format!("fit: {e}"));
                 }
             }
@@ -174,7 +180,7 @@ mod tests {
             .collect();
         let text = crate::io::export::obj_seq::obj_text(&moved, &shirt.mesh.faces, None, "moved");
         std::fs::write(&file, text).unwrap();
-        let outcome = fit_to_file(&avatar, &file).unwrap();
+        let outcome = fit_to_file(&avatar, &file, UpAxis::Auto).unwrap();
         assert_eq!(outcome.fitted, dir.path().join("shirt-fitted.obj"));
         assert!(
             outcome.summary.contains("centimetres"),
@@ -205,5 +211,53 @@ mod tests {
         };
         assert!(!state.apply_fit(Err(failed.into())));
         assert!(state.last_error().is_some_and(|e| e.ends_with("x.obj")));
+    }
+
+    /// Issue 13: the app's "Fit garment" ignored the Up axis selector (it always detected).
+    #[test]
+    fn fit_garment_takes_the_up_axis_selector() {
+        let avatar = mannequin().unwrap();
+        let shirt = builtin_garment(&avatar, GarmentKind::TShirt, 400, None).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("lying.obj");
+        // Z up: (x, y, z) -> (x, -z, y).
+        let lying: Vec<Vec3> = shirt
+            .mesh
+            .positions
+            .iter()
+            .map(|p| Vec3::new(p.x, -p.z, p.y))
+            .collect();
+        let text = crate::io::export::obj_seq::obj_text(&lying, &shirt.mesh.faces, None, "z-up");
+        std::fs::write(&file, text).unwrap();
+        let fitted = |up: UpAxis| {
+            let outcome = fit_to_file(&avatar, &file, up).unwrap_or_else(|e| panic!("{up:?}: {e}"));
+            let options = crate::io::ImportOptions {
+                units: crate::io::Units::Metres,
+                up: UpAxis::Y,
+                ..Default::default()
+            };
+            let garment = crate::io::obj::load_obj(&outcome.fitted, &options)
+                .unwrap()
+                .mesh
+                .positions;
+            let height = |ps: &[Vec3]| {
+                let (lo, hi) = ps.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+                    (lo.min(p.y), hi.max(p.y))
+                });
+                hi - lo
+            };
+            (height(&garment), height(&shirt.mesh.positions))
+        };
+        let (z_height, upright) = fitted(UpAxis::Z);
+        assert!(
+            (z_height - upright).abs() < 0.05 * upright,
+            "fitted as Z up: {z_height} m tall against the shirt's {upright} m"
+        );
+        // Told Y up, the same file stays lying: the selector, not detection, decided.
+        let (y_height, _) = fitted(UpAxis::Y);
+        assert!(
+            (y_height - upright).abs() > 0.2 * upright,
+            "fitted as Y up: {y_height} m tall, as if upright ({upright} m)"
+        );
     }
 }
