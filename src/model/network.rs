@@ -29,7 +29,8 @@ use burn::tensor::module::linear as dense;
 use super::descriptors::DYNAMIC_DIM;
 
 pub use super::network_config::{
-    ClothNetConfig, DEFAULT_BASIS_BIAS_LR_SCALE, DEFAULT_BASIS_LR_SCALE, EncoderKind, MAX_WIDTH,
+    ClothNetConfig, DEFAULT_BASIS_BIAS_LR_SCALE, DEFAULT_BASIS_LR_SCALE,
+    DEFAULT_DYNAMIC_BASIS_LR_SCALE, EncoderKind, MAX_WIDTH,
 };
 
 /// A stack of linear layers, each followed by ReLU.

@@ -54,6 +54,10 @@ fn config_validation_and_toml_round_trip() {
     let old: ClothNetConfig = toml::from_str("latent = 12").unwrap();
     assert!(!old.dynamic_basis && ClothNetConfig::default().dynamic_basis);
     assert_eq!(old.dynamic_basis_lr_scale, DEFAULT_BASIS_LR_SCALE);
+    assert_eq!(
+        ClothNetConfig::default().dynamic_basis_lr_scale,
+        DEFAULT_DYNAMIC_BASIS_LR_SCALE
+    );
     assert!(c.init(0, 5, &Device::flex()).is_err());
 }
 
