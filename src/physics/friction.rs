@@ -51,8 +51,6 @@ pub struct FrictionContacts {
     /// 1 where a vertex is in the contact band (`ρ > 0`, collides, active row), else 0,
     /// `[B, V, 1]`: the vertices the slip metric averages over.
     pub touching_mask: Tensor<3>,
-    /// Number of vertices in the contact band (for logs and tests).
-    pub touching: usize,
 }
 
 impl FrictionContacts {
@@ -96,7 +94,6 @@ impl FrictionContacts {
         let mut step = vec![0.0f32; 3 * n];
         let mut weight = vec![0.0f32; n];
         let mut mask = vec![0.0f32; n];
-        let mut touching = 0;
         for row in 0..b {
             if !(active.is_empty() || active[row]) {
                 continue;
@@ -116,7 +113,6 @@ impl FrictionContacts {
                 step[3 * k..3 * k + 3].copy_from_slice(&[d.x, d.y, d.z]);
                 weight[k] = if w.is_finite() { w as f32 } else { 0.0 };
                 mask[k] = 1.0;
-                touching += 1;
             }
         }
         let device = contacts.normals.device();
@@ -126,18 +122,21 @@ impl FrictionContacts {
             normals: contacts.normals.clone(),
             weight: upload(weight, [b, v, 1], &device, dtype),
             touching_mask: upload(mask, [b, v, 1], &device, dtype),
-            touching,
         })
     }
 
-    /// Rows `start..start + len` of the batch (`touching` still counts the whole batch).
+    /// Number of vertices in the contact band (read back from [`Self::touching_mask`]).
+    pub fn touching(&self) -> Result<usize, PhysicsError> {
+        Ok(read_sum(self.touching_mask.clone())?.round() as usize)
+    }
+
+    /// Rows `start..start + len` of the batch.
     pub fn narrow(&self, start: usize, len: usize) -> Self {
         Self {
             body_step: self.body_step.clone().narrow(0, start, len),
             normals: self.normals.clone().narrow(0, start, len),
             weight: self.weight.clone().narrow(0, start, len),
             touching_mask: self.touching_mask.clone().narrow(0, start, len),
-            touching: self.touching,
         }
     }
 }
@@ -146,14 +145,26 @@ fn upload(values: Vec<f32>, shape: [usize; 3], device: &Device, dtype: DType) ->
     Tensor::from_data(TensorData::new(values, shape), (device, dtype))
 }
 
+fn read_sum(t: Tensor<3>) -> Result<f64, PhysicsError> {
+    Ok(super::tensors::read_f64(t.sum())?
+        .first()
+        .copied()
+        .unwrap_or(0.0))
+}
+
+/// Squared tangential slip `|u_T|²` of every vertex over the step, `[B, V, 1]` (gradient to
+/// `x_t` only).
+fn tangential_slip2(x_t: &Tensor<3>, x_t1: &Tensor<3>, fc: &FrictionContacts) -> Tensor<3> {
+    let u = x_t.clone() - x_t1.clone().detach() - fc.body_step.clone();
+    let normal = dot(u.clone(), fc.normals.clone());
+    norm2(u - fc.normals.clone() * normal)
+}
+
 /// The friction dissipation `D(x_t)` per sample, `[B]` joules, with `x_{t-1}` detached (see
 /// the module docs).
 pub fn friction(x_t: &Tensor<3>, x_t1: &Tensor<3>, fc: &FrictionContacts) -> Tensor<1> {
-    let u = x_t.clone() - x_t1.clone().detach() - fc.body_step.clone();
-    let normal = dot(u.clone(), fc.normals.clone());
-    let tangent = u - fc.normals.clone() * normal;
     let d2 = SLIP_REGULARISER_M * SLIP_REGULARISER_M;
-    let slip = norm2(tangent)
+    let slip = tangential_slip2(x_t, x_t1, fc)
         .add_scalar(d2)
         .sqrt()
         .sub_scalar(SLIP_REGULARISER_M);
@@ -168,22 +179,12 @@ pub fn mean_slip_m(
     x_t1: &Tensor<3>,
     fc: &FrictionContacts,
 ) -> Result<Option<f64>, PhysicsError> {
-    let u = x_t.clone().detach() - x_t1.clone().detach() - fc.body_step.clone();
-    let normal = dot(u.clone(), fc.normals.clone());
-    let slip = norm2(u - fc.normals.clone() * normal).sqrt();
-    let touching = fc.touching_mask.clone();
-    let count: f64 = super::tensors::read_f64(touching.clone().sum())?
-        .first()
-        .copied()
-        .unwrap_or(0.0);
+    let slip = tangential_slip2(&x_t.clone().detach(), x_t1, fc).sqrt();
+    let count = read_sum(fc.touching_mask.clone())?;
     if count <= 0.0 {
         return Ok(None);
     }
-    let total: f64 = super::tensors::read_f64((slip * touching).sum())?
-        .first()
-        .copied()
-        .unwrap_or(0.0);
-    Ok(Some(total / count))
+    Ok(Some(read_sum(slip * fc.touching_mask.clone())? / count))
 }
 
 #[cfg(test)]
@@ -262,7 +263,10 @@ mod tests {
         let shift = Vec3::new(0.03, 0.0, -0.01);
         let c = case(shift, 0.0);
         let fc = contacts_of(&c);
-        assert!(fc.touching > 0, "the sheet's centre lies on the sphere");
+        assert!(
+            fc.touching().unwrap() > 0,
+            "the sheet's centre lies on the sphere"
+        );
         let carried: Vec<Vec3> = c.x.iter().map(|p| p + shift).collect();
         assert!(energy(&c, &fc, &carried).abs() < 1e-9);
         // Left behind where the body moved away: it slid 3.2 cm over the skin.
@@ -301,7 +305,7 @@ mod tests {
             fabric.collision_threshold_m + CONTACT_BAND_M as f32 + 0.002,
         );
         let fc = contacts_of(&far);
-        assert_eq!(fc.touching, 0);
+        assert_eq!(fc.touching().unwrap(), 0);
         let moved: Vec<Vec3> = far.x.iter().map(|p| p + Vec3::x() * 0.1).collect();
         assert_eq!(energy(&far, &fc, &moved), 0.0);
         let near = case(Vec3::zeros(), 0.0);
@@ -314,7 +318,7 @@ mod tests {
             &near.fabric,
         )
         .unwrap();
-        assert_eq!(off.touching, 0);
+        assert_eq!(off.touching().unwrap(), 0);
         let moved: Vec<Vec3> = near.x.iter().map(|p| p + Vec3::x() * 0.1).collect();
         assert_eq!(energy(&near, &off, &moved), 0.0);
     }
