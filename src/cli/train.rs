@@ -120,6 +120,10 @@ pub struct TrainArgs {
     /// Steps over which the learning rate rises linearly to its value at the start (default 0)
     #[arg(long)]
     pub warmup_steps: Option<u64>,
+    /// Stiffness scale of the training gradient filter `D (D + βK)⁻¹`, 0..=100 (default 0:
+    /// off; see docs/TRAINING.md)
+    #[arg(long)]
+    pub precondition: Option<f64>,
     /// Only still windows train the static encoder (moving windows see its code detached;
     /// default: every window trains it; see docs/TRAINING.md).
     #[arg(long)]
@@ -285,6 +289,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(n) = args.warmup_steps {
         train.warmup_steps = n;
+    }
+    if let Some(b) = args.precondition {
+        train.precondition_stiffness = b;
     }
     if let Some(f) = args.lr_final_factor {
         train.lr_final_factor = f;

@@ -114,6 +114,12 @@ pub struct TrainConfig {
     /// (Adam's first steps move every weight by about the rate whatever its gradient, which
     /// kills most decoder units of a fresh network within 50 steps); 0..=100000, default 0.
     pub warmup_steps: u64,
+    /// Stiffness scale β of the gradient filter ([`crate::physics::GradientFilter`]): the
+    /// physics gradient with respect to each loss frame becomes `D (D + βK)⁻¹ g`, `D = M/Δt²`,
+    /// `K` the rest membrane stiffness, which shrinks the stiff modes' share of the gradient
+    /// so that the smooth modes a garment swings in learn at the rate of the rest. 0 = off
+    /// (the plain gradient); 0..=100, default 0.
+    pub precondition_stiffness: f64,
 }
 
 impl Default for TrainConfig {
@@ -145,6 +151,7 @@ impl Default for TrainConfig {
             fit_check: true,
             loss_frames: 1,
             warmup_steps: 0,
+            precondition_stiffness: 0.0,
         }
     }
 }
@@ -280,6 +287,12 @@ impl TrainConfig {
             "warmup_steps",
             self.warmup_steps,
             "0..=100000",
+        )?;
+        check(
+            (0.0..=100.0).contains(&self.precondition_stiffness),
+            "precondition_stiffness",
+            self.precondition_stiffness,
+            "0..=100",
         )?;
         if let Some(m) = self.max_minutes {
             check(m.is_finite() && m > 0.0, "max_minutes", m, "> 0")?;

@@ -23,7 +23,9 @@ use rand::seq::SliceRandom;
 use crate::model::activity::{Activity, revive_dead_units, unit_activity};
 use crate::model::{ClothNet, DescriptorConfig, GarmentLbs, InferenceWeights, ModelArtifact};
 use crate::physics::metrics::History;
-use crate::physics::{BodyBatch, ClothMetrics, Contacts, FabricParams, LossTerms, PhysicsTerms};
+use crate::physics::{
+    BodyBatch, ClothMetrics, Contacts, FabricParams, GradientFilter, LossTerms, PhysicsTerms,
+};
 use crate::scene::{Avatar, Garment};
 
 use super::TrainError;
@@ -61,6 +63,9 @@ pub struct NeuralSession {
     activity: Option<Activity>,
     /// Standard deviation of fresh weights when dead units are revived.
     init_std: f64,
+    /// The gradient filter of [`TrainConfig::precondition_stiffness`], built on first use
+    /// (and again after a fabric change).
+    filter: Option<Arc<GradientFilter>>,
 }
 
 /// The parts a session is built from.
@@ -114,7 +119,25 @@ impl NeuralSession {
             run: parts.run,
             activity: None,
             init_std: parts.init_std,
+            filter: None,
         }
+    }
+
+    /// The gradient filter, when the settings ask for one.
+    fn gradient_filter(&mut self) -> Result<Option<Arc<GradientFilter>>, TrainError> {
+        let beta = self.config.precondition_stiffness;
+        if beta <= 0.0 {
+            return Ok(None);
+        }
+        if self.filter.is_none() {
+            self.filter = Some(Arc::new(GradientFilter::new(
+                self.terms.rest(),
+                self.terms.fabric(),
+                self.config.dt_secs(),
+                beta,
+            )?));
+        }
+        Ok(self.filter.clone())
     }
 
     /// Restores model, optimiser and learning rate from checkpoint `step`.
@@ -337,6 +360,28 @@ fn detach_from(z: Tensor<3>, from: usize) -> Tensor<3> {
     Tensor::cat(vec![z.narrow(0, 0, from), tail], 0)
 }
 
+/// `Σ x_net · sg(F(∂total/∂x))`, F the gradient filter: its gradient with respect to the
+/// network's output `x_net` is the filtered physics gradient. `x` is the detached leaf copy of
+/// `x_net` that `total` was computed from.
+fn filtered_surrogate(
+    filter: &GradientFilter,
+    x_net: &Tensor<4>,
+    x: &Tensor<4>,
+    total: Tensor<1>,
+) -> Result<Tensor<1>, TrainError> {
+    let dims = x.dims();
+    let grads = total.backward();
+    let mut g = match x.grad(&grads) {
+        Some(g) => g
+            .try_into_vec_as::<f32>()
+            .map_err(|e| crate::physics::PhysicsError::Backend(e.to_string()))?,
+        None => vec![0.0; dims.iter().product()],
+    };
+    filter.apply(&mut g)?;
+    let g = Tensor::<4>::from_data(TensorData::new(g, dims), &x_net.device());
+    Ok((x_net.clone() * g).sum())
+}
+
 /// `x[:, k]` as `[B, V, 3]`.
 fn frame(x: &Tensor<4>, k: usize) -> Tensor<3> {
     let [b, _, v, c] = x.dims();
@@ -374,7 +419,14 @@ impl Session for NeuralSession {
             predicted,
             &self.garment.skin,
         );
-        let (x, blended) = self.predict(&batch, still, augment);
+        let (x_net, blended) = self.predict(&batch, still, augment);
+        // With the gradient filter, the losses are taken on a detached copy of the posed
+        // frames; their gradient is filtered and handed to the network through a surrogate.
+        let filter = self.gradient_filter()?;
+        let x = match filter {
+            Some(_) => x_net.clone().detach().require_grad(),
+            None => x_net.clone(),
+        };
         // Every loss frame k in 2..K, stacked frame by frame: its static losses, and its
         // inertia from the network's own two previous frames.
         let x_t = stack_frames(&x, 2, predicted, b);
@@ -421,7 +473,10 @@ impl Session for NeuralSession {
             }
         }
         let loss = total.clone().into_scalar::<f64>();
-        let grads = total.backward();
+        let grads = match filter {
+            None => total.backward(),
+            Some(filter) => filtered_surrogate(&filter, &x_net, &x, total)?.backward(),
+        };
         let grads = GradientsParams::from_grads(grads, &self.model);
         self.optim.step(
             self.learning_rate * self.schedule_factor,
@@ -585,6 +640,7 @@ impl Session for NeuralSession {
         let effects = *self.terms.effects();
         self.terms = PhysicsTerms::new(&self.garment, &fabric, &effects, &self.device)?
             .with_fused(self.config.fused_physics);
+        self.filter = None;
         Ok(())
     }
 
