@@ -198,3 +198,13 @@ fn the_cost_experiment_can_be_cancelled() {
     );
     assert_eq!(calls, 1);
 }
+
+#[test]
+#[ignore = "benchmark: run with --ignored --nocapture and copy the table into docs/PHYSICS.md"]
+fn measure_term_costs_at_10k_dof() {
+    let report =
+        neural_cloth::bench::cost::measure_term_costs(&burn::tensor::Device::flex(), 10_000, 8, 10)
+            .unwrap();
+    println!("{}", report.to_markdown());
+    assert!(report.terms.iter().all(|t| t.ms.is_finite() && t.ms > 0.0));
+}

@@ -1,0 +1,478 @@
+//! Project files: the whole setup (the scene description, the training config, runs folder,
+//! the run shown, view settings) as one human-edited TOML file, plus the recent-files list
+//! (machine-written JSON). The scene is a [`SceneConfig`], the same description a scene file
+//! holds and a run records, under `[scene]`. Paths inside a project are stored relative to the
+//! project file when they lie below its folder, and resolved against it when opened. Files of
+//! the first layout (version 1) are read and converted ([`super::project_v1`]).
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use neural_cloth_core::scene::SceneConfig;
+use neural_cloth_render::DrawOptions;
+use neural_cloth_train::TrainConfig;
+
+use super::metrics::XAxis;
+
+/// Current project format version (2: the scene is a [`SceneConfig`]; 1: scene sources,
+/// fabric and effects apart, still read).
+pub const PROJECT_VERSION: u32 = 2;
+/// Entries kept in the recent-files list.
+pub const MAX_RECENT: usize = 10;
+
+/// Errors reading or writing project and recent-files files.
+#[derive(Debug, thiserror::Error)]
+pub enum ProjectError {
+    /// The file could not be read.
+    #[error("cannot read project ({source}): {}", path.display())]
+    Read {
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+        /// The file.
+        path: PathBuf,
+    },
+    /// The file could not be written.
+    #[error("cannot write project ({source}): {}", path.display())]
+    Write {
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+        /// The file.
+        path: PathBuf,
+    },
+    /// The file is not a valid project.
+    #[error("invalid project file: {reason}: {}", path.display())]
+    Parse {
+        /// What is wrong.
+        reason: String,
+        /// The file.
+        path: PathBuf,
+    },
+}
+
+/// Viewport and panel settings saved with a project.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ViewSettings {
+    /// Dynamic-code weight `w` of the preview, in [0, 2]; default 1.
+    pub w: f32,
+    /// Viewport toggles.
+    pub draw: DrawOptions,
+    /// X axis of the metric curves.
+    pub x_axis: XAxis,
+    /// Playback speed (× real time), in [0.1, 4]; default 1.
+    pub playback_speed: f32,
+}
+
+impl Default for ViewSettings {
+    fn default() -> Self {
+        Self {
+            w: 1.0,
+            draw: DrawOptions::default(),
+            x_axis: XAxis::Step,
+            playback_speed: 1.0,
+        }
+    }
+}
+
+/// A saved authoring session.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ProjectFile {
+    /// Format version, [`PROJECT_VERSION`].
+    pub version: u32,
+    /// The scene: avatar, garment and motions (built in or files, motions with their splits),
+    /// effects, fabric and the training frame rate.
+    pub scene: SceneConfig,
+    /// Training configuration (window, batch, schedule); its `fps` is written equal to
+    /// `scene.training_fps` and replaced by it when read.
+    pub training: TrainConfig,
+    /// Folder new runs are written under; None = `runs/` beside the project file. Read from
+    /// `run_dir` too (its name in earlier files).
+    #[serde(alias = "run_dir")]
+    pub runs_folder: Option<PathBuf>,
+    /// The run whose trained model the project shows (reopened with the project).
+    pub run: Option<PathBuf>,
+    /// `[retention]` of earlier project files: read and ignored, never written (a run's
+    /// checkpoint retention lives in its own folder, `RUN/retention.json`).
+    #[serde(rename = "retention", skip_serializing)]
+    pub old_retention: Option<serde::de::IgnoredAny>,
+    /// View settings.
+    pub view: ViewSettings,
+}
+
+impl Default for ProjectFile {
+    fn default() -> Self {
+        Self {
+            version: PROJECT_VERSION,
+            scene: SceneConfig::default_scene(),
+            training: TrainConfig::default(),
+            runs_folder: None,
+            run: None,
+            old_retention: None,
+            view: ViewSettings::default(),
+        }
+    }
+}
+
+/// `path` relative to `base` when it lies below it, else unchanged.
+fn relative_to(path: &Path, base: &Path) -> PathBuf {
+    path.strip_prefix(base)
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|_| path.to_path_buf())
+}
+
+/// `path` resolved against `base` when relative.
+fn resolve(path: &Path, base: &Path) -> PathBuf {
+    if path.is_relative() {
+        base.join(path)
+    } else {
+        path.to_path_buf()
+    }
+}
+
+/// Writes `bytes` to a temporary file beside `path`, then renames it over `path`.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ProjectError> {
+    let err = |source| ProjectError::Write {
+        source,
+        path: path.to_path_buf(),
+    };
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(err)?;
+    }
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
+    std::fs::write(&tmp, bytes).map_err(err)?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        err(e)
+    })
+}
+
+impl ProjectFile {
+    /// Applies `f` to every path in the project.
+    fn map_paths(&mut self, f: impl Fn(&Path) -> PathBuf) {
+        self.scene.map_paths(&f);
+        for p in self.runs_folder.iter_mut().chain(self.run.iter_mut()) {
+            *p = f(p);
+        }
+    }
+
+    /// Serialises to TOML with paths as given.
+    pub fn to_toml(&self) -> Result<String, String> {
+        toml::to_string_pretty(self).map_err(|e| e.to_string())
+    }
+
+    /// Writes the project to `path` (atomically), storing paths relative to its folder.
+    pub fn save(&self, path: &Path) -> Result<(), ProjectError> {
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let base = std::path::absolute(&base).unwrap_or(base);
+        let mut copy = self.clone();
+        copy.training.fps = copy.scene.training_fps;
+        copy.map_paths(|p| {
+            relative_to(
+                &std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()),
+                &base,
+            )
+        });
+        let text = copy.to_toml().map_err(|reason| ProjectError::Parse {
+            reason,
+            path: path.to_path_buf(),
+        })?;
+        write_atomic(path, format!("# neural-cloth project\n{text}").as_bytes())
+    }
+
+    /// Reads a project (converting the version-1 layout), checks its version and values, and
+    /// resolves its paths against its folder.
+    pub fn open(path: &Path) -> Result<Self, ProjectError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ProjectError::Read {
+            source,
+            path: path.to_path_buf(),
+        })?;
+        let parse = |reason: String| ProjectError::Parse {
+            reason,
+            path: path.to_path_buf(),
+        };
+        let table: toml::Table = text
+            .parse()
+            .map_err(|e: toml::de::Error| parse(e.to_string()))?;
+        let version = match table.get("version") {
+            // Version 1 wrote every key but let a hand-edited file leave any out: its layout
+            // (fabric and effects at the top, the scene's sources as plain strings) tells.
+            None if super::project_v1::looks_like_v1(&table) => Some(1),
+            None => Some(PROJECT_VERSION),
+            Some(v) => v.as_integer().and_then(|v| u32::try_from(v).ok()),
+        };
+        let mut project = match version {
+            Some(1) => super::project_v1::convert(table).map_err(parse)?,
+            Some(PROJECT_VERSION) => toml::Value::Table(table)
+                .try_into::<ProjectFile>()
+                .map_err(|e| parse(e.to_string()))?,
+            _ => {
+                return Err(parse(format!(
+                    "version {} (this build reads versions 1 to {PROJECT_VERSION})",
+                    table
+                        .get("version")
+                        .map_or_else(String::new, |v| v.to_string())
+                )));
+            }
+        };
+        project.training.fps = project.scene.training_fps;
+        project.check().map_err(parse)?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        project.map_paths(|p| resolve(p, &base));
+        Ok(project)
+    }
+
+    /// Checks the values a project may hold (a scene being edited may not be trainable yet:
+    /// no motion, a garment dropped by another avatar).
+    fn check(&self) -> Result<(), String> {
+        self.scene
+            .validate_values()
+            .map_err(|e| format!("scene: {e}"))?;
+        self.training
+            .validate()
+            .map_err(|e| format!("training: {e}"))?;
+        let w = self.view.w;
+        if !(w.is_finite() && (0.0..=2.0).contains(&w)) {
+            return Err(format!("view.w = {w} is outside [0, 2]"));
+        }
+        let speed = self.view.playback_speed;
+        if !speed.is_finite() {
+            // The app clamps the speed into its range, and a clamp keeps NaN.
+            return Err(format!(
+                "view.playback_speed = {speed} is not a finite number"
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Most-recently-used project files, newest first, optionally persisted as JSON.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RecentFiles {
+    /// The files, newest first, at most [`MAX_RECENT`], no duplicates.
+    pub paths: Vec<PathBuf>,
+    /// Where the list is stored; None = not persisted (tests).
+    pub store: Option<PathBuf>,
+}
+
+impl RecentFiles {
+    /// The default store: `$XDG_CONFIG_HOME/neural-cloth/recent.json` or
+    /// `~/.config/neural-cloth/recent.json`; None when neither variable is set.
+    pub fn default_store() -> Option<PathBuf> {
+        let config = std::env::var_os("XDG_CONFIG_HOME")
+            .map(PathBuf::from)
+            .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config")))?;
+        Some(config.join("neural-cloth").join("recent.json"))
+    }
+
+    /// Loads the list from `store` (a missing or unreadable file gives an empty list).
+    pub fn load(store: Option<PathBuf>) -> Self {
+        let paths = store
+            .as_deref()
+            .and_then(|p| std::fs::read(p).ok())
+            .and_then(|bytes| serde_json::from_slice::<Vec<PathBuf>>(&bytes).ok())
+            .unwrap_or_default();
+        let mut recent = Self {
+            paths: Vec::new(),
+            store,
+        };
+        for p in paths.into_iter().rev() {
+            recent.insert(p);
+        }
+        recent
+    }
+
+    fn insert(&mut self, path: PathBuf) {
+        self.paths.retain(|p| *p != path);
+        self.paths.insert(0, path);
+        self.paths.truncate(MAX_RECENT);
+    }
+
+    /// Moves `path` to the front and saves the list when it has a store.
+    pub fn push(&mut self, path: &Path) -> Result<(), ProjectError> {
+        self.insert(std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()));
+        match &self.store {
+            Some(store) => {
+                let json =
+                    serde_json::to_vec_pretty(&self.paths).map_err(|e| ProjectError::Parse {
+                        reason: e.to_string(),
+                        path: store.clone(),
+                    })?;
+                write_atomic(store, &json)
+            }
+            None => Ok(()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use neural_cloth_core::scene::config::{AvatarSource, GarmentSource, MotionSource};
+    use neural_cloth_core::scene::procedural::GarmentKind;
+    use neural_cloth_core::scene::{Split, UpAxis};
+
+    #[test]
+    fn round_trip_keeps_everything_and_relativises_paths() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut p = ProjectFile::default();
+        p.scene.garment = GarmentSource::File {
+            path: dir.path().join("garments/shirt.obj"),
+            units: None,
+            up: UpAxis::Z,
+            smoothing_passes: Some(30),
+        };
+        p.scene.motions.push(MotionSource::File {
+            path: PathBuf::from("/elsewhere/walk.bvh"),
+            units: None,
+            up: UpAxis::Y,
+            split: Split::Validation,
+            name: None,
+            joint_map: Some(dir.path().join("maps/walk.toml")),
+        });
+        p.scene.fabric.density_kg_per_m2 = 0.3;
+        p.scene.training_fps = 60.0;
+        p.training.window_secs = 1.0;
+        p.training.max_steps = Some(500);
+        p.view.w = 1.5;
+        p.view.draw.wireframe = true;
+        p.run = Some(dir.path().join("runs/run-1"));
+        let file = dir.path().join("my.ncproj.toml");
+        p.save(&file).unwrap();
+        let text = std::fs::read_to_string(&file).unwrap();
+        assert!(
+            text.contains("\"garments/shirt.obj\"")
+                && text.contains("\"maps/walk.toml\"")
+                && text.contains("\"runs/run-1\"")
+                && !text.contains(&*dir.path().to_string_lossy()),
+            "{text}"
+        );
+        let back = ProjectFile::open(&file).unwrap();
+        // The training rate has one home, the scene's.
+        p.training.fps = 60.0;
+        assert_eq!(back, p);
+    }
+
+    #[test]
+    fn a_version_2_project_from_before_the_up_axis_still_opens() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("old.toml");
+        // As the version-2 app wrote it before file sources had `up`.
+        let old = "version = 2\n\n[scene]\nname = \"body\"\ntraining_fps = 30.0\n\n\
+                   [scene.avatar]\npath = \"avatars/body.glb\"\n\n[scene.garment]\n\
+                   path = \"garments/shirt.obj\"\nunits = \"cm\"\nsmoothing_passes = 3\n\n\
+                   [[scene.motions]]\npath = \"avatars/body.glb\"\nsplit = \"train\"\n\n\
+                   [scene.effects]\ngravity = true\nbending = true\ncollision = true\n\
+                   dynamics = true\npinning = false\n\n[scene.fabric]\npreset = \"default\"\n";
+        std::fs::write(&file, old).unwrap();
+        let p = ProjectFile::open(&file).unwrap();
+        assert_eq!(p.version, PROJECT_VERSION);
+        assert!(matches!(
+            &p.scene.avatar,
+            AvatarSource::File { up: UpAxis::Auto, path, .. } if path == &dir.path().join("avatars/body.glb")
+        ));
+        assert!(matches!(
+            p.scene.garment,
+            GarmentSource::File {
+                up: UpAxis::Auto,
+                ..
+            }
+        ));
+        assert!(matches!(
+            p.scene.motions[0],
+            MotionSource::File {
+                up: UpAxis::Auto,
+                ..
+            }
+        ));
+        // Saved again, auto is left out, and a set axis is written and read back.
+        p.save(&file).unwrap();
+        assert!(!std::fs::read_to_string(&file).unwrap().contains("up ="));
+        let mut p = p;
+        if let GarmentSource::File { up, .. } = &mut p.scene.garment {
+            *up = UpAxis::Z;
+        }
+        p.save(&file).unwrap();
+        let text = std::fs::read_to_string(&file).unwrap();
+        assert_eq!(text.matches("up = \"z\"").count(), 1, "{text}");
+        assert_eq!(ProjectFile::open(&file).unwrap().scene, p.scene);
+    }
+
+    #[test]
+    fn the_built_in_garment_is_saved_by_kind() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut p = ProjectFile::default();
+        p.scene.garment = GarmentSource::Builtin {
+            builtin: GarmentKind::Skirt,
+            resolution: 1200,
+            smoothing_passes: None,
+        };
+        let file = dir.path().join("skirt.toml");
+        p.save(&file).unwrap();
+        let back = ProjectFile::open(&file).unwrap();
+        assert_eq!(back.scene.garment, p.scene.garment);
+    }
+
+    #[test]
+    fn retention_is_not_saved_and_old_files_with_it_still_open() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("old.toml");
+        ProjectFile::default().save(&file).unwrap();
+        let text = std::fs::read_to_string(&file).unwrap();
+        assert!(!text.contains("retention"), "{text}");
+        // A project saved before retention moved to the run folder.
+        std::fs::write(
+            &file,
+            format!("{text}\n[retention]\nkeep_newest = 5\nkeep_best = false\n"),
+        )
+        .unwrap();
+        let old = ProjectFile::open(&file).unwrap();
+        assert_eq!(old.version, PROJECT_VERSION);
+    }
+
+    #[test]
+    fn bad_projects_are_errors_naming_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("bad.toml");
+        std::fs::write(&file, "version = 1\n[view]\nw = 7.0\n").unwrap();
+        let err = ProjectFile::open(&file).unwrap_err().to_string();
+        assert!(err.contains("view.w") && err.ends_with("bad.toml"), "{err}");
+        std::fs::write(&file, "version = 99\n").unwrap();
+        assert!(
+            ProjectFile::open(&file)
+                .unwrap_err()
+                .to_string()
+                .contains("version 99")
+        );
+        std::fs::write(&file, "nonsense = [\n").unwrap();
+        assert!(matches!(
+            ProjectFile::open(&file),
+            Err(ProjectError::Parse { .. })
+        ));
+        assert!(matches!(
+            ProjectFile::open(&dir.path().join("missing.toml")),
+            Err(ProjectError::Read { .. })
+        ));
+    }
+
+    #[test]
+    fn recent_files_are_unique_newest_first_and_persisted() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = dir.path().join("recent.json");
+        let mut r = RecentFiles::load(Some(store.clone()));
+        for k in 0..12 {
+            r.push(&dir.path().join(format!("p{k}.toml"))).unwrap();
+        }
+        r.push(&dir.path().join("p5.toml")).unwrap();
+        assert_eq!(r.paths.len(), MAX_RECENT);
+        assert!(r.paths[0].ends_with("p5.toml"));
+        assert_eq!(r.paths.iter().filter(|p| p.ends_with("p5.toml")).count(), 1);
+        let again = RecentFiles::load(Some(store));
+        assert_eq!(again.paths, r.paths);
+    }
+}

@@ -1,0 +1,389 @@
+//! Training configuration: batch, temporal window, frame rate, optimiser and schedule.
+
+use serde::{Deserialize, Serialize};
+
+/// How the inertia loss treats past frames (paper §4.5).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InertiaMode {
+    /// Ours: the projection `2x_{t-1} - x_{t-2}` is a constant (stop-gradient); only `x_t` learns.
+    #[default]
+    Ours,
+    /// SNUG-style: gradients also flow into the past frames.
+    Snug,
+}
+
+/// Which compute backend trains the model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BackendKind {
+    /// burn's `flex` CPU backend (default; fastest CPU backend measured on our step).
+    #[default]
+    Cpu,
+    /// burn-wgpu on the first GPU adapter.
+    Wgpu,
+}
+
+/// Everything that decides how a model is trained. Units in field names.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrainConfig {
+    /// Windows per batch; 1..=256, default 16 (the paper uses up to 32).
+    pub batch_size: usize,
+    /// Temporal window in seconds; 0.05..=4, default 0.5 (looser garments need up to 2 s).
+    pub window_secs: f32,
+    /// Frame rate the motions are resampled to for training, in fps; 5..=240, default 30.
+    pub fps: f32,
+    /// Adam learning rate; (0, 1], default 1e-3.
+    pub learning_rate: f64,
+    /// Stop after this many optimiser steps (None = no limit). Default None.
+    pub max_steps: Option<u64>,
+    /// Stop after this many minutes of wall-clock time (None = no limit). Default None.
+    pub max_minutes: Option<f64>,
+    /// Validate every this many steps; >= 1, default 50.
+    pub validate_every: u64,
+    /// Send a weight snapshot for preview every this many steps; >= 1, default 10.
+    pub snapshot_every: u64,
+    /// Write a checkpoint every this many steps; >= 1, default 200.
+    pub checkpoint_every: u64,
+    /// Add left/right mirrored copies of the training motions. Default true.
+    pub mirror_poses: bool,
+    /// Fraction of each batch whose dynamic codes are shuffled (motion augmentation, static
+    /// losses only, no encoder gradient); 0..=0.9, default 0 (the paper's 0.2 teaches the
+    /// dynamic basis to stay silent: docs/TRAINING.md, round 4).
+    pub augmentation_fraction: f32,
+    /// Inertia gradient mode; default `ours`.
+    pub inertia_mode: InertiaMode,
+    /// Compute backend; default `cpu`.
+    pub backend: BackendKind,
+    /// Seed of every random choice (initialisation, sampling); default 0.
+    pub seed: u64,
+    /// Warm start: seconds the reference simulator lets the garment settle on the rest pose
+    /// before training; the basis bias starts at that drape (see [`super::warm_start`]).
+    /// 0 = start from the template; 0..=10, default 1.5.
+    pub predrape_secs: f32,
+    /// Data-dependent initialisation: centre every biased layer's pre-activations on the
+    /// training poses before the first step, so that no unit starts dead for every pose
+    /// ([`neural_cloth_model::activity::centre_biases`]). Default true.
+    pub centre_init: bool,
+    /// Fraction of each batch made of still windows (a training pose held for the whole
+    /// window: static losses, zero dynamics), teaching the static branch the quasi-static drape
+    /// of every pose; 0..=0.9 (with `augmentation_fraction`, at most 0.95), default 0.25
+    /// (measured on the skirt: still hem radius 0.199 m against 0.220 m without, simulator
+    /// 0.136 m; docs/TRAINING.md).
+    pub still_fraction: f32,
+    /// Only the still windows train the static encoder: in moving windows its code is
+    /// detached, so the static branch learns the quasi-static drape of each pose and the
+    /// dynamic branch carries all motion. Needs `still_fraction > 0` and the disentangled
+    /// encoder; default false: on the skirt it changed little (still hem 0.168 against
+    /// 0.169 m, swing 49.6 against 45.3 mm), on the t-shirt it cost static accuracy (idle
+    /// 3.4 against 2.7 mm after 2200 steps: a quarter of each batch trains the static branch).
+    pub static_from_still: bool,
+    /// Fraction of a bounded run (by steps or minutes) at its end over which the learning
+    /// rate falls along a half cosine to `lr_final_factor` of its value: Adam's steps are
+    /// about the rate whatever the gradient, so a constant rate leaves millimetres of noise
+    /// in the drape. 0..=1, default 0 (constant rate: resuming the 30-minute t-shirt at a tenth
+    /// of the rate for 400 steps left its idle distance at 2.4 mm; docs/TRAINING.md).
+    /// Open-ended runs (the app without a limit) always keep the constant rate.
+    pub lr_decay_fraction: f64,
+    /// The learning-rate factor reached at the end of a bounded run, in (0, 1]; default 0.1.
+    pub lr_final_factor: f64,
+    /// Evaluate the static energies with the fused kernels (default true) or with the burn
+    /// tensor code they are checked against (false: the reference path, about 3× slower per
+    /// step on the default scene; kept for checks and benchmarks).
+    pub fused_physics: bool,
+    /// Update the parameters with the fused Adam ([`super::adam::FusedAdam`]: one host pass
+    /// over each parameter and its moments, the same formula and numbers as burn's) when the
+    /// backend keeps them on the host (`cpu`); false, or `wgpu`: burn's Adam. Both save the
+    /// same checkpoint state. Default true.
+    pub fused_adam: bool,
+    /// A validation pass with at least this percentage of dead units in one revivable layer
+    /// (decoder, static hidden layers) triggers the stall remedy (revive the dead units); 1..=100, default 75.
+    pub dead_limit_pct: f64,
+    /// Refuse a garment file that clearly does not fit the avatar (many vertices inside the
+    /// body, far outside it, or a size or place that fitting would change a lot; see
+    /// [`super::preflight::fit_refusal`]); built-in garments are not checked. Default true.
+    pub fit_check: bool,
+    /// Trailing frames of each window that get the per-frame loss (inertia from the network's
+    /// own two previous frames, plus the static terms): 1 = the paper's (the last frame only);
+    /// more gives the dynamics that build up over several frames more signal per step, and
+    /// each step that much more physics (measured: no better at equal steps, docs/TRAINING.md).
+    /// 1..=16 and at most the window's frames minus 2; default 1.
+    pub loss_frames: usize,
+    /// Steps over which the learning rate rises linearly to its value at the start of a run
+    /// (Adam's first steps move every weight by about the rate whatever its gradient, which
+    /// kills most decoder units of a fresh network within 50 steps); 0..=100000, default 0.
+    pub warmup_steps: u64,
+    /// Stiffness scale β of the gradient filter ([`neural_cloth_physics::GradientFilter`]): the
+    /// physics gradient with respect to each loss frame becomes `D (D + βK)⁻¹ g`, `D = M/Δt²`,
+    /// `K` the rest membrane stiffness, which shrinks the stiff modes' share of the gradient
+    /// so that the smooth modes a garment swings in learn at the rate of the rest. 0 = off
+    /// (the plain gradient); 0..=100, default 0.
+    pub precondition_stiffness: f64,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            batch_size: 16,
+            window_secs: 0.5,
+            fps: 30.0,
+            learning_rate: 1e-3,
+            max_steps: None,
+            max_minutes: None,
+            validate_every: 50,
+            snapshot_every: 10,
+            checkpoint_every: 200,
+            mirror_poses: true,
+            augmentation_fraction: 0.0,
+            inertia_mode: InertiaMode::Ours,
+            backend: BackendKind::Cpu,
+            seed: 0,
+            predrape_secs: 1.5,
+            centre_init: true,
+            still_fraction: 0.25,
+            static_from_still: false,
+            dead_limit_pct: 75.0,
+            lr_decay_fraction: 0.0,
+            lr_final_factor: 0.1,
+            fused_physics: true,
+            fused_adam: true,
+            fit_check: true,
+            loss_frames: 1,
+            warmup_steps: 0,
+            precondition_stiffness: 0.0,
+        }
+    }
+}
+
+/// A configuration value outside its documented range.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("training setting `{field}` = {value} is outside {range}")]
+pub struct ConfigError {
+    /// Field name.
+    pub field: &'static str,
+    /// Offending value, formatted.
+    pub value: String,
+    /// Allowed range, formatted.
+    pub range: &'static str,
+}
+
+impl TrainConfig {
+    /// Frames per training window: `ceil(window_secs * fps) + 3` (the last 3 are predicted).
+    pub fn window_frames(&self) -> usize {
+        (self.window_secs * self.fps).ceil().max(0.0) as usize + 3
+    }
+
+    /// Time step between frames in seconds.
+    pub fn dt_secs(&self) -> f32 {
+        1.0 / self.fps
+    }
+
+    /// Checks every field against its documented range.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        fn check(
+            ok: bool,
+            field: &'static str,
+            value: impl ToString,
+            range: &'static str,
+        ) -> Result<(), ConfigError> {
+            if ok {
+                Ok(())
+            } else {
+                Err(ConfigError {
+                    field,
+                    value: value.to_string(),
+                    range,
+                })
+            }
+        }
+        check(
+            (1..=256).contains(&self.batch_size),
+            "batch_size",
+            self.batch_size,
+            "1..=256",
+        )?;
+        check(
+            (0.05..=4.0).contains(&self.window_secs),
+            "window_secs",
+            self.window_secs,
+            "0.05..=4 s",
+        )?;
+        check(
+            (5.0..=240.0).contains(&self.fps),
+            "fps",
+            self.fps,
+            "5..=240",
+        )?;
+        check(
+            self.learning_rate > 0.0 && self.learning_rate <= 1.0,
+            "learning_rate",
+            self.learning_rate,
+            "(0, 1]",
+        )?;
+        check(
+            self.validate_every >= 1,
+            "validate_every",
+            self.validate_every,
+            ">= 1",
+        )?;
+        check(
+            self.snapshot_every >= 1,
+            "snapshot_every",
+            self.snapshot_every,
+            ">= 1",
+        )?;
+        check(
+            self.checkpoint_every >= 1,
+            "checkpoint_every",
+            self.checkpoint_every,
+            ">= 1",
+        )?;
+        check(
+            (0.0..=0.9).contains(&self.augmentation_fraction),
+            "augmentation_fraction",
+            self.augmentation_fraction,
+            "0..=0.9",
+        )?;
+        check(
+            (0.0..=10.0).contains(&self.predrape_secs),
+            "predrape_secs",
+            self.predrape_secs,
+            "0..=10 s",
+        )?;
+        check(
+            (0.0..=0.9).contains(&self.still_fraction)
+                && self.still_fraction + self.augmentation_fraction <= 0.95,
+            "still_fraction",
+            self.still_fraction,
+            "0..=0.9, with augmentation_fraction at most 0.95",
+        )?;
+        check(
+            (1.0..=100.0).contains(&self.dead_limit_pct),
+            "dead_limit_pct",
+            self.dead_limit_pct,
+            "1..=100 %",
+        )?;
+        check(
+            (0.0..=1.0).contains(&self.lr_decay_fraction),
+            "lr_decay_fraction",
+            self.lr_decay_fraction,
+            "0..=1",
+        )?;
+        check(
+            self.lr_final_factor > 0.0 && self.lr_final_factor <= 1.0,
+            "lr_final_factor",
+            self.lr_final_factor,
+            "(0, 1]",
+        )?;
+        check(
+            (1..=16).contains(&self.loss_frames) && self.loss_frames + 2 <= self.window_frames(),
+            "loss_frames",
+            self.loss_frames,
+            "1..=16 and at most the window's frames minus 2",
+        )?;
+        check(
+            self.warmup_steps <= 100_000,
+            "warmup_steps",
+            self.warmup_steps,
+            "0..=100000",
+        )?;
+        check(
+            (0.0..=100.0).contains(&self.precondition_stiffness),
+            "precondition_stiffness",
+            self.precondition_stiffness,
+            "0..=100",
+        )?;
+        if let Some(m) = self.max_minutes {
+            check(m.is_finite() && m > 0.0, "max_minutes", m, "> 0")?;
+        }
+        Ok(())
+    }
+}
+
+/// The learning-rate factor of the warm-up before step `step + 1` (0-based `step`):
+/// `(step + 1) / warmup_steps` up to 1; always 1 without a warm-up.
+pub fn warmup_factor(step: u64, warmup_steps: u64) -> f64 {
+    if warmup_steps == 0 {
+        1.0
+    } else {
+        ((step + 1) as f64 / warmup_steps as f64).min(1.0)
+    }
+}
+
+/// The learning-rate factor at `progress` (0..=1 of a bounded run): 1 until the last
+/// `decay_fraction` of the run, then a half cosine down to `final_factor`.
+pub fn lr_schedule_factor(progress: f64, decay_fraction: f64, final_factor: f64) -> f64 {
+    if decay_fraction <= 0.0 || !progress.is_finite() {
+        return 1.0;
+    }
+    let t = ((progress - (1.0 - decay_fraction)) / decay_fraction).clamp(0.0, 1.0);
+    final_factor + (1.0 - final_factor) * 0.5 * (1.0 + (std::f64::consts::PI * t).cos())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lr_schedule_is_flat_then_falls_to_the_final_factor() {
+        assert_eq!(warmup_factor(0, 0), 1.0);
+        assert_eq!(warmup_factor(0, 4), 0.25);
+        assert_eq!(warmup_factor(3, 4), 1.0);
+        assert_eq!(warmup_factor(99, 4), 1.0);
+        assert_eq!(lr_schedule_factor(0.0, 0.3, 0.1), 1.0);
+        assert_eq!(lr_schedule_factor(0.7, 0.3, 0.1), 1.0);
+        assert!((lr_schedule_factor(0.85, 0.3, 0.1) - 0.55).abs() < 1e-12);
+        assert!((lr_schedule_factor(1.0, 0.3, 0.1) - 0.1).abs() < 1e-12);
+        assert!((lr_schedule_factor(1.5, 0.3, 0.1) - 0.1).abs() < 1e-12);
+        assert_eq!(lr_schedule_factor(0.99, 0.0, 0.1), 1.0);
+        let mut last = 1.0;
+        for i in 0..=100 {
+            let f = lr_schedule_factor(i as f64 / 100.0, 0.3, 0.1);
+            assert!(f <= last + 1e-15, "not monotone at {i}");
+            last = f;
+        }
+    }
+
+    #[test]
+    fn window_frames_follow_the_paper() {
+        let c = TrainConfig::default();
+        assert_eq!(c.window_frames(), 15 + 3);
+        let c = TrainConfig {
+            window_secs: 0.1,
+            fps: 60.0,
+            ..Default::default()
+        };
+        assert_eq!(c.window_frames(), 6 + 3);
+    }
+
+    #[test]
+    fn validation_names_the_field() {
+        assert!(TrainConfig::default().validate().is_ok());
+        let e = TrainConfig {
+            window_secs: 0.0,
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert_eq!(e.field, "window_secs");
+        let e = TrainConfig {
+            batch_size: 0,
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert_eq!(e.field, "batch_size");
+    }
+
+    #[test]
+    fn round_trips_through_toml() {
+        let c = TrainConfig {
+            batch_size: 8,
+            inertia_mode: InertiaMode::Snug,
+            ..Default::default()
+        };
+        let text = toml::to_string(&c).unwrap();
+        assert_eq!(toml::from_str::<TrainConfig>(&text).unwrap(), c);
+    }
+}

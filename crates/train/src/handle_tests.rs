@@ -1,0 +1,118 @@
+//! Tests of the training loop with a session double.
+
+use std::sync::{Arc, Mutex};
+
+use super::*;
+
+/// Records the schedule factor of every step; everything else is inert.
+struct Recording {
+    factors: Arc<Mutex<Vec<f64>>>,
+    factor: f64,
+}
+
+impl Session for Recording {
+    fn step(&mut self) -> Result<MetricRecord, TrainError> {
+        if let Ok(mut f) = self.factors.lock() {
+            f.push(self.factor);
+        }
+        Ok(MetricRecord {
+            loss: 1.0,
+            ..Default::default()
+        })
+    }
+    fn validate(&mut self) -> Result<MetricRecord, TrainError> {
+        Ok(MetricRecord {
+            loss: 1.0,
+            ..Default::default()
+        })
+    }
+    fn weights_finite(&self) -> bool {
+        true
+    }
+    fn snapshot(&self) -> Result<neural_cloth_model::ModelArtifact, TrainError> {
+        Err(TrainError::Data("no weights".into()))
+    }
+    fn checkpoint(&mut self, _: u64, _: &MetricHistory) -> Result<PathBuf, TrainError> {
+        Err(TrainError::NoCheckpointYet)
+    }
+    fn restore_last_checkpoint(&mut self) -> Result<u64, TrainError> {
+        Err(TrainError::NoCheckpointYet)
+    }
+    fn learning_rate(&self) -> f64 {
+        1e-3
+    }
+    fn set_learning_rate(&mut self, _: f64) {}
+    fn set_schedule_factor(&mut self, factor: f64) {
+        self.factor = factor;
+    }
+    fn set_fabric(&mut self, _: FabricParams) -> Result<(), TrainError> {
+        Ok(())
+    }
+    fn set_window(&mut self, _: f32) -> Result<(), TrainError> {
+        Ok(())
+    }
+}
+
+fn factors_of(max_steps: Option<u64>, lr_decay: (f64, f64), warmup_steps: u64) -> Vec<f64> {
+    let factors = Arc::new(Mutex::new(Vec::new()));
+    let session = Recording {
+        factors: factors.clone(),
+        factor: 1.0,
+    };
+    let config = LoopConfig {
+        run_dir: PathBuf::from("unused"),
+        start_step: 0,
+        history: MetricHistory::default(),
+        max_steps,
+        max_secs: None,
+        validate_every: 1000,
+        snapshot_every: 1000,
+        checkpoint_every: 1000,
+        max_rollbacks: 1,
+        warnings: Vec::new(),
+        dead_limit_pct: 100.0,
+        lr_decay,
+        warmup_steps,
+    };
+    let handle = TrainerHandle::spawn_session(session, config, None).unwrap();
+    // Drain the events until the thread ends, so it never blocks on a full channel; an
+    // open-ended run is stopped after 20 steps.
+    while !handle.is_finished() {
+        handle.drain();
+        if max_steps.is_none() && factors.lock().unwrap().len() >= 20 {
+            handle.stop();
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    handle.join();
+    factors.lock().unwrap().clone()
+}
+
+#[test]
+fn a_bounded_run_decays_its_learning_rate_over_its_last_steps_only() {
+    let f = factors_of(Some(10), (0.3, 0.1), 0);
+    assert_eq!(f.len(), 10);
+    // Progress before step k+1 is k / 10: flat up to 0.7, then the half cosine.
+    assert!(f[..8].iter().all(|&x| x == 1.0), "{f:?}");
+    assert!((f[8] - crate::config::lr_schedule_factor(0.8, 0.3, 0.1)).abs() < 1e-12);
+    assert!(f[9] < f[8] && f[9] > 0.1, "{f:?}");
+    // Without decay, or open-ended, the rate stays.
+    assert!(
+        factors_of(Some(10), (0.0, 0.1), 0)
+            .iter()
+            .all(|&x| x == 1.0)
+    );
+    assert!(factors_of(None, (0.3, 0.1), 0).iter().all(|&x| x == 1.0));
+}
+
+#[test]
+fn the_learning_rate_warms_up_over_the_first_steps_of_open_and_bounded_runs() {
+    for max_steps in [Some(10), None] {
+        let f = factors_of(max_steps, (0.0, 0.1), 4);
+        assert_eq!(f[..5], [0.25, 0.5, 0.75, 1.0, 1.0], "{max_steps:?}: {f:?}");
+    }
+    // With a decay too, the two factors multiply.
+    let f = factors_of(Some(10), (0.3, 0.1), 4);
+    assert_eq!(f[0], 0.25);
+    assert!(f[9] < 1.0 && f[9] > 0.1, "{f:?}");
+}

@@ -1,0 +1,656 @@
+//! The neural training session: model, optimiser, data and physics of one run, stepped by the
+//! trainer thread ([`super::handle`]).
+//!
+//! One step (paper §3.4, §4.1): sample `B` windows of `ceil(window·fps)+3` frames, encode
+//! them, decode the last `loss_frames + 2` frames and skin them; static losses on each of the
+//! last `loss_frames` frames (1, the paper's: the last frame only); inertia of each such `x_t`
+//! against the stop-gradient projection `2x_{t-1} - x_{t-2}` of the network's own previous
+//! frames (or, in `snug` mode, with gradients into the past frames); motion augmentation
+//! replaces the dynamic code of a fraction of the batch by another sample's (encoders
+//! detached, static losses only); with the friction effect, the friction dissipation of each
+//! loss frame's slip over the body since the network's own previous frame; Adam.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use burn::module::Module;
+use burn::optim::GradientsParams;
+use burn::tensor::{Bytes, Device, Int, Tensor, TensorData};
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand::seq::SliceRandom;
+
+use neural_cloth_core::scene::{Avatar, Garment};
+use neural_cloth_model::activity::{Activity, revive_dead_units, unit_activity};
+use neural_cloth_model::{ClothNet, DescriptorConfig, GarmentLbs, InferenceWeights, ModelArtifact};
+use neural_cloth_physics::metrics::History;
+use neural_cloth_physics::{
+    BodyBatch, ClothMetrics, Contacts, FabricParams, GradientFilter, LossTerms, PhysicsTerms,
+};
+
+use super::TrainError;
+use super::adam::TrainOptimiser;
+use super::config::{InertiaMode, TrainConfig};
+use super::data::{Batch, Dataset};
+use super::handle::Session;
+use super::metrics::{MetricHistory, MetricRecord};
+use super::run_dir::{CheckpointState, RunDir};
+
+/// Validation windows per pass.
+pub const VALIDATION_WINDOWS: usize = 32;
+/// Windows of each training batch whose metrics are logged per step.
+pub const STEP_METRIC_WINDOWS: usize = 4;
+
+/// Everything one run trains with.
+pub struct NeuralSession {
+    device: Device,
+    model: ClothNet,
+    optim: TrainOptimiser,
+    learning_rate: f64,
+    /// Factor of the learning-rate schedule on `learning_rate` (checkpoints keep the latter).
+    schedule_factor: f64,
+    config: TrainConfig,
+    descriptors: DescriptorConfig,
+    terms: PhysicsTerms,
+    lbs: GarmentLbs,
+    avatar: Arc<Avatar>,
+    garment: Arc<Garment>,
+    train: Dataset,
+    validation: Dataset,
+    rng: StdRng,
+    run: RunDir,
+    /// Unit activity of the last validation pass.
+    activity: Option<Activity>,
+    /// Standard deviation of fresh weights when dead units are revived.
+    init_std: f64,
+    /// The gradient filter of [`TrainConfig::precondition_stiffness`], built on first use
+    /// (and again after a fabric change).
+    filter: Option<Arc<GradientFilter>>,
+}
+
+/// The parts a session is built from.
+pub struct SessionParts {
+    /// Autodiff device.
+    pub device: Device,
+    /// Initial (or restored) network.
+    pub model: ClothNet,
+    /// Training settings.
+    pub config: TrainConfig,
+    /// Descriptor settings of the training data (travel with the weight snapshots).
+    pub descriptors: DescriptorConfig,
+    /// Physics terms of the garment.
+    pub terms: PhysicsTerms,
+    /// Garment skinning.
+    pub lbs: GarmentLbs,
+    /// The avatar (bodies for collisions).
+    pub avatar: Arc<Avatar>,
+    /// The garment (physics rebuilt from it when the fabric changes).
+    pub garment: Arc<Garment>,
+    /// Training data.
+    pub train: Dataset,
+    /// Validation data (may be empty: then the training motions validate).
+    pub validation: Dataset,
+    /// Run directory.
+    pub run: RunDir,
+    /// Standard deviation of fresh FC weights (the model's `init_std`), for reviving units.
+    pub init_std: f64,
+}
+
+impl NeuralSession {
+    /// Assembles a session with a fresh Adam optimiser.
+    pub fn new(parts: SessionParts) -> Self {
+        let optim = TrainOptimiser::for_config(&parts.config);
+        let seed = parts.config.seed;
+        Self {
+            device: parts.device,
+            model: parts.model,
+            optim,
+            learning_rate: parts.config.learning_rate,
+            schedule_factor: 1.0,
+            config: parts.config,
+            descriptors: parts.descriptors,
+            terms: parts.terms,
+            lbs: parts.lbs,
+            avatar: parts.avatar,
+            garment: parts.garment,
+            train: parts.train,
+            validation: parts.validation,
+            rng: StdRng::seed_from_u64(seed ^ 0x5eed),
+            run: parts.run,
+            activity: None,
+            init_std: parts.init_std,
+            filter: None,
+        }
+    }
+
+    /// The gradient filter, when the settings ask for one.
+    fn gradient_filter(&mut self) -> Result<Option<Arc<GradientFilter>>, TrainError> {
+        let beta = self.config.precondition_stiffness;
+        if beta <= 0.0 {
+            return Ok(None);
+        }
+        if self.filter.is_none() {
+            self.filter = Some(Arc::new(GradientFilter::new(
+                self.terms.rest(),
+                self.terms.fabric(),
+                self.config.dt_secs(),
+                beta,
+            )?));
+        }
+        Ok(self.filter.clone())
+    }
+
+    /// Restores model, optimiser and learning rate from checkpoint `step`.
+    pub fn load_checkpoint(&mut self, step: u64) -> Result<CheckpointState, TrainError> {
+        let (model_bytes, optim_bytes, state) = self.run.read_checkpoint(step)?;
+        let record = burn::store::ModuleRecord::from_bytes(Bytes::from_bytes_vec(model_bytes))
+            .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+        self.model = self
+            .model
+            .clone()
+            .try_load_record(record)
+            .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+        self.optim = self
+            .optim
+            .load_bytes(Bytes::from_bytes_vec(optim_bytes))
+            .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
+        self.learning_rate = state.learning_rate;
+        Ok(state)
+    }
+
+    /// The current network.
+    pub fn model(&self) -> &ClothNet {
+        &self.model
+    }
+
+    /// Centres the biases of the network on the probe windows (data-dependent initialisation,
+    /// [`neural_cloth_model::activity::centre_biases`]); call before the first step.
+    pub fn centre_biases(&mut self) -> Result<(), TrainError> {
+        let (statics, dynamics) = self.probe_descriptors();
+        neural_cloth_model::activity::centre_biases(&mut self.model, statics, dynamics)?;
+        Ok(())
+    }
+
+    /// Replaces the network (e.g. a warm start); the optimiser state is kept.
+    pub fn set_model(&mut self, model: ClothNet) {
+        self.model = model;
+    }
+
+    /// The run directory.
+    pub fn run_dir(&self) -> &RunDir {
+        &self.run
+    }
+
+    fn tensor4(&self, data: Vec<f32>, shape: [usize; 4]) -> Tensor<4> {
+        Tensor::from_data(TensorData::new(data, shape), &self.device)
+    }
+
+    /// Pinning targets of the predicted frames `first..K` of `batch`, stacked frame by frame
+    /// (`[(K - first)·B, V, 3]`, the order of [`stack_frames`]): the skinned template, where
+    /// the reference simulator holds pinned vertices too. `None` when nothing is pinned or the
+    /// scene's pinning effect is off.
+    fn pin_target(&self, batch: &Batch, blended: &Tensor<4>, first: usize) -> Option<Tensor<3>> {
+        self.terms.tensors().pinned.as_ref()?;
+        let (b, v, k) = (batch.size, self.garment.vertex_count(), batch.predicted);
+        let frames = k.saturating_sub(first);
+        let blended = blended
+            .clone()
+            .narrow(1, first, frames)
+            .swap_dims(0, 1)
+            .reshape([frames * b, 1, v, 12]);
+        let template = self
+            .lbs
+            .rest(Tensor::zeros([frames * b, 1, v, 3], &self.device));
+        Some(super::losses::skin_blended(template, blended).reshape([frames * b, v, 3]))
+    }
+
+    /// `(z_s + z_d, z_d)`, except for the last `augment` samples: their own static code
+    /// (detached) plus a shuffled sample's dynamic code (detached), the paper's motion
+    /// augmentation. The second code feeds the dynamic basis, when the network has one.
+    fn mix_codes(
+        &mut self,
+        z_s: Tensor<3>,
+        z_d: Tensor<3>,
+        augment: usize,
+    ) -> (Tensor<3>, Tensor<3>) {
+        if augment == 0 {
+            return (z_s + z_d.clone(), z_d);
+        }
+        let b = z_s.dims()[0];
+        let kept = b - augment;
+        let mut perm: Vec<i64> = (0..b as i64).collect();
+        perm.shuffle(&mut self.rng);
+        let picks = Tensor::<1, Int>::from_data(
+            TensorData::new(perm[..augment].to_vec(), [augment]),
+            &self.device,
+        );
+        let shuffled_d = z_d.clone().select(0, picks).detach();
+        let mixed_d = Tensor::cat(vec![z_d.narrow(0, 0, kept), shuffled_d], 0);
+        let z_s = Tensor::cat(
+            vec![
+                z_s.clone().narrow(0, 0, kept),
+                z_s.narrow(0, kept, augment).detach(),
+            ],
+            0,
+        );
+        (z_s + mixed_d.clone(), mixed_d)
+    }
+
+    /// Posed garment `[B, K, V, 3]` of the last `K = batch.predicted` frames of `batch` whose
+    /// first `still` windows are still, with `augment` samples (the last ones) given another
+    /// sample's dynamic code and detached encoders.
+    /// Also returns the batch's blended skinning matrices as a tensor (`[B, K, V, 12]`), for
+    /// the pinning targets.
+    fn predict(&mut self, batch: &Batch, still: usize, augment: usize) -> (Tensor<4>, Tensor<4>) {
+        let (b, t, k) = (batch.size, batch.frames, batch.predicted);
+        let j = self.train.input_joints;
+        let statics = self.tensor4(batch.static_desc.clone(), [b, t, j, 9]);
+        let dynamics = (self.model.kind() != neural_cloth_model::EncoderKind::StaticOnly)
+            .then(|| self.tensor4(batch.dynamic_desc.clone(), [b, t, j, 12]));
+        let split_static = self.config.static_from_still && still > 0 && still < b;
+        let offsets = if (augment == 0 && !split_static) || !self.model.has_dynamic_branch() {
+            self.model.forward_last(statics, dynamics, 1.0, k)
+        } else {
+            let (z_s, z_d) = self.model.encode_last(statics, dynamics, k);
+            match z_d {
+                Some(z_d) => {
+                    let z_s = if split_static {
+                        detach_from(z_s, still)
+                    } else {
+                        z_s
+                    };
+                    let (z, z_d) = self.mix_codes(z_s, z_d, augment);
+                    self.model.decode_with(z, Some(z_d))
+                }
+                None => self.model.decode(z_s),
+            }
+        };
+        let v = self.garment.vertex_count();
+        let blended = self.tensor4(batch.blended.clone(), [b, k, v, 12]);
+        let x = super::losses::skin_blended(self.lbs.rest(offsets), blended.clone());
+        (x, blended)
+    }
+
+    /// Body contacts (when collision is on) and static losses of `x_t`, the predicted frames
+    /// `first..K` of `batch` stacked frame by frame ([`stack_frames`]).
+    fn static_losses(
+        &self,
+        data: &Dataset,
+        batch: &Batch,
+        blended: &Tensor<4>,
+        first: usize,
+        x_t: &Tensor<3>,
+    ) -> Result<(Option<Contacts>, LossTerms), TrainError> {
+        let bodies = self.bodies(data, batch, first)?;
+        let contacts = match &bodies {
+            Some(bodies) => Some(self.terms.contacts(x_t, bodies)?),
+            None => None,
+        };
+        let mut losses = self.terms.static_losses_with(x_t, contacts.as_ref())?;
+        if let Some(pinning) = self
+            .pin_target(batch, blended, first)
+            .and_then(|target| self.terms.pinning(x_t, &target))
+        {
+            losses.push(neural_cloth_physics::Term::Pinning, pinning);
+        }
+        Ok((contacts, losses))
+    }
+
+    /// Posed bodies of the predicted frames `first..K` of `batch`, stacked frame by frame.
+    fn bodies(
+        &self,
+        data: &Dataset,
+        batch: &Batch,
+        first: usize,
+    ) -> Result<Option<BodyBatch>, TrainError> {
+        if !self.terms.effects().collision {
+            return Ok(None);
+        }
+        let bodies = batch
+            .stacked_frames(first)
+            .into_iter()
+            .map(|(m, f)| data.body(&self.avatar, m, f))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Some(BodyBatch::new(bodies)))
+    }
+
+    /// Descriptors `[B, T, J, 9]` and `[B, T, J, 12]` of the probe windows that decide whether
+    /// a unit is dead: [`VALIDATION_WINDOWS`] windows spread evenly over the validation motions
+    /// and as many over the training motions (a validation split of one motion, e.g. a turn,
+    /// shows nearly one pose: half of any layer would look dead on it alone).
+    fn probe_descriptors(&self) -> (Tensor<4>, Option<Tensor<4>>) {
+        let frames = self.window_frames();
+        let (mut statics, mut dynamics) = (Vec::new(), Vec::new());
+        let mut size = 0;
+        for data in [&self.train, &self.validation] {
+            let windows = data.even_windows(VALIDATION_WINDOWS);
+            size += windows.len();
+            data.append_descriptors(&windows, frames, &mut statics, &mut dynamics);
+        }
+        let j = self.train.input_joints;
+        let statics = self.tensor4(statics, [size, frames, j, 9]);
+        let dynamics = (self.model.kind() != neural_cloth_model::EncoderKind::StaticOnly)
+            .then(|| self.tensor4(dynamics, [size, frames, j, 12]));
+        (statics, dynamics)
+    }
+
+    /// Per-layer unit activity of the network on the probe windows.
+    fn activity(&self) -> Result<Activity, TrainError> {
+        let (statics, dynamics) = self.probe_descriptors();
+        Ok(unit_activity(&self.model, statics, dynamics)?)
+    }
+
+    fn record(&self, metrics: &ClothMetrics, loss: f64) -> MetricRecord {
+        MetricRecord::from_metrics(self.terms.fabric().cloth_model, metrics, loss)
+    }
+
+    /// Frames of the configured window.
+    fn window_frames(&self) -> usize {
+        self.config.window_frames()
+    }
+}
+
+/// `z` with rows `from..` detached (their gradient stops here).
+fn detach_from(z: Tensor<3>, from: usize) -> Tensor<3> {
+    let b = z.dims()[0];
+    if from >= b {
+        return z;
+    }
+    let tail = z.clone().narrow(0, from, b - from).detach();
+    Tensor::cat(vec![z.narrow(0, 0, from), tail], 0)
+}
+
+/// `Σ x_net · sg(F(∂total/∂x))`, F the gradient filter: its gradient with respect to the
+/// network's output `x_net` is the filtered physics gradient. `x` is the detached leaf copy of
+/// `x_net` that `total` was computed from.
+fn filtered_surrogate(
+    filter: &GradientFilter,
+    x_net: &Tensor<4>,
+    x: &Tensor<4>,
+    total: Tensor<1>,
+) -> Result<Tensor<1>, TrainError> {
+    let dims = x.dims();
+    let grads = total.backward();
+    let mut g = match x.grad(&grads) {
+        Some(g) => g
+            .try_into_vec_as::<f32>()
+            .map_err(|e| neural_cloth_physics::PhysicsError::Backend(e.to_string()))?,
+        None => vec![0.0; dims.iter().product()],
+    };
+    filter.apply(&mut g)?;
+    let g = Tensor::<4>::from_data(TensorData::new(g, dims), &x_net.device());
+    Ok((x_net.clone() * g).sum())
+}
+
+/// `x[:, k]` as `[B, V, 3]`.
+fn frame(x: &Tensor<4>, k: usize) -> Tensor<3> {
+    let [b, _, v, c] = x.dims();
+    x.clone().narrow(1, k, 1).reshape([b, v, c])
+}
+
+/// The first `rows` samples of frames `from..to` of `x` (`[B, K, V, 3]`), stacked frame by
+/// frame: `[(to - from)·rows, V, 3]`, row `(k - from)·rows + s` holding sample `s` of frame `k`.
+fn stack_frames(x: &Tensor<4>, from: usize, to: usize, rows: usize) -> Tensor<3> {
+    let frames: Vec<Tensor<3>> = (from..to).map(|k| frame(x, k).narrow(0, 0, rows)).collect();
+    Tensor::cat(frames, 0)
+}
+
+impl Session for NeuralSession {
+    fn step(&mut self) -> Result<MetricRecord, TrainError> {
+        let b = self.config.batch_size;
+        let windows = self.train.sample_windows(b, &mut self.rng);
+        let augment = if self.terms.effects().dynamics && b >= 2 {
+            ((self.config.augmentation_fraction * b as f32).round() as usize).min(b - 1)
+        } else {
+            0
+        };
+        // Still windows come first, augmented ones last; without dynamics every window is
+        // already quasi-static.
+        let still = if self.terms.effects().dynamics {
+            ((self.config.still_fraction * b as f32).round() as usize).min(b - augment)
+        } else {
+            0
+        };
+        let predicted = self.config.loss_frames + 2;
+        let batch = self.train.batch_with_still(
+            &windows,
+            still,
+            self.window_frames(),
+            predicted,
+            &self.garment.skin,
+        );
+        let (x_net, blended) = self.predict(&batch, still, augment);
+        // With the gradient filter, the losses are taken on a detached copy of the posed
+        // frames; their gradient is filtered and handed to the network through a surrogate.
+        let filter = self.gradient_filter()?;
+        let x = match filter {
+            Some(_) => x_net.clone().detach().require_grad(),
+            None => x_net.clone(),
+        };
+        // Every loss frame k in 2..K, stacked frame by frame: its static losses, and its
+        // inertia from the network's own two previous frames.
+        let x_t = stack_frames(&x, 2, predicted, b);
+        let (contacts, losses) = self.static_losses(&self.train, &batch, &blended, 2, &x_t)?;
+        let mut total = losses
+            .total()
+            .unwrap_or_else(|| Tensor::zeros([1], &self.device));
+        let mut friction = None;
+        if self.terms.effects().dynamics {
+            let kept = b - augment;
+            let (xt, xt1, xt2) = (
+                stack_frames(&x, 2, predicted, kept),
+                stack_frames(&x, 1, predicted - 1, kept),
+                stack_frames(&x, 0, predicted - 2, kept),
+            );
+            let inertia = match self.config.inertia_mode {
+                InertiaMode::Ours => self.terms.inertia(&xt, &xt1, &xt2, self.config.dt_secs()),
+                InertiaMode::Snug => super::losses::inertia_through_past(
+                    &self.terms,
+                    &xt,
+                    &xt1,
+                    &xt2,
+                    self.config.dt_secs(),
+                ),
+            };
+            if let Some(inertia) = inertia {
+                total = total + inertia;
+            }
+            if let (Some(c), true) = (&contacts, self.terms.friction_on()) {
+                friction = super::losses::friction_contacts(
+                    &self.terms,
+                    &self.train,
+                    &self.avatar,
+                    &batch,
+                    c,
+                    kept,
+                )?;
+            }
+            if let Some(fc) = &friction {
+                let xt1 = stack_frames(&x, 1, predicted - 1, b);
+                if let Some(d) = self.terms.friction(&x_t, &xt1, fc) {
+                    total = total + d;
+                }
+            }
+        }
+        let loss = total.clone().into_scalar::<f64>();
+        let grads = match filter {
+            None => total.backward(),
+            Some(filter) => filtered_surrogate(&filter, &x_net, &x, total)?.backward(),
+        };
+        let grads = GradientsParams::from_grads(grads, &self.model);
+        self.optim.step(
+            self.learning_rate * self.schedule_factor,
+            &mut self.model,
+            grads,
+        )?;
+        // Per-step metrics on the first few windows only: they are a noisy monitor anyway, and
+        // the full batch would cost a sizeable share of the step (validation uses every window).
+        let n = b.min(STEP_METRIC_WINDOWS);
+        let head = |t: Tensor<3>| t.detach().narrow(0, 0, n);
+        let history = History {
+            x_t1: head(frame(&x, predicted - 2)),
+            x_t2: head(frame(&x, predicted - 3)),
+            dt_secs: self.config.dt_secs(),
+            friction: friction.map(|fc| fc.narrow((predicted - 3) * b, n)),
+        };
+        // The last frame's block of the stacked contacts.
+        let last = (predicted - 3) * b;
+        let v = self.garment.vertex_count();
+        let contacts = contacts.map(|c| neural_cloth_physics::Contacts {
+            points: c.points.narrow(0, last, n),
+            normals: c.normals.narrow(0, last, n),
+            distances_m: c.distances_m[last * v..(last + n) * v].to_vec(),
+            indices: c.indices[last * v..(last + n) * v].to_vec(),
+        });
+        let metrics = self.terms.metrics(
+            &head(frame(&x, predicted - 1)),
+            contacts.as_ref(),
+            Some(&history),
+        )?;
+        Ok(self.record(&metrics, loss))
+    }
+
+    fn validate(&mut self) -> Result<MetricRecord, TrainError> {
+        let data = if self.validation.is_empty() {
+            &self.train
+        } else {
+            &self.validation
+        };
+        let windows = data.even_windows(VALIDATION_WINDOWS);
+        if windows.is_empty() {
+            return Err(TrainError::NoValidationFrames);
+        }
+        let batch = data.batch(&windows, self.window_frames(), 3, &self.garment.skin);
+        let (x, blended) = self.predict(&batch, 0, 0);
+        let x = x.detach();
+        let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
+        let data = if self.validation.is_empty() {
+            &self.train
+        } else {
+            &self.validation
+        };
+        let (contacts, losses) = self.static_losses(data, &batch, &blended, 2, &x_t)?;
+        let mut loss = losses
+            .total()
+            .map(|t| t.into_scalar::<f64>())
+            .unwrap_or(0.0);
+        if let Some(i) = self
+            .terms
+            .inertia(&x_t, &x_t1, &x_t2, self.config.dt_secs())
+        {
+            loss += i.into_scalar::<f64>();
+        }
+        let friction = match &contacts {
+            Some(c) => super::losses::friction_contacts(
+                &self.terms,
+                data,
+                &self.avatar,
+                &batch,
+                c,
+                batch.size,
+            )?,
+            None => None,
+        };
+        if let Some(d) = friction
+            .as_ref()
+            .and_then(|fc| self.terms.friction(&x_t, &x_t1, fc))
+        {
+            loss += d.into_scalar::<f64>();
+        }
+        let history = History {
+            x_t1,
+            x_t2,
+            dt_secs: self.config.dt_secs(),
+            friction,
+        };
+        let metrics = self
+            .terms
+            .metrics(&x_t, contacts.as_ref(), Some(&history))?;
+        let activity = self.activity()?;
+        let mut record = self.record(&metrics, loss);
+        record.dead_units_pct = activity.worst_revivable_pct();
+        self.activity = Some(activity);
+        Ok(record)
+    }
+
+    fn activity_summary(&self) -> Option<String> {
+        self.activity.as_ref().map(Activity::summary)
+    }
+
+    fn revive_dead_units(&mut self) -> Result<usize, TrainError> {
+        let (statics, dynamics) = self.probe_descriptors();
+        let [b, t, j, c] = statics.dims();
+        let flat = statics.clone().detach().reshape([b * t, j * c]);
+        let z = self.model.latent_code(statics, dynamics, 1.0).detach();
+        let latent = z.dims()[2];
+        let revived = revive_dead_units(
+            &mut self.model,
+            flat,
+            z.reshape([b * t, latent]),
+            self.init_std,
+        )?;
+        Ok(revived.iter().sum())
+    }
+
+    fn weights_finite(&self) -> bool {
+        InferenceWeights::from_module(&self.model)
+            .map(|w| w.validate().is_ok())
+            .unwrap_or(false)
+    }
+
+    fn snapshot(&self) -> Result<ModelArtifact, TrainError> {
+        let weights = InferenceWeights::from_module(&self.model)?;
+        Ok(ModelArtifact::new(
+            weights,
+            self.descriptors.clone(),
+            self.config.fps,
+        ))
+    }
+
+    fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, TrainError> {
+        let model_bytes = self.model.clone().into_record().into_bytes()?;
+        let optim_bytes = self.optim.to_bytes()?;
+        let state = CheckpointState {
+            step,
+            learning_rate: self.learning_rate,
+        };
+        self.run
+            .write_checkpoint(state, &model_bytes, &optim_bytes, history)
+    }
+
+    fn restore_last_checkpoint(&mut self) -> Result<u64, TrainError> {
+        let step = self.run.latest_step().ok_or(TrainError::NoCheckpointYet)?;
+        self.load_checkpoint(step)?;
+        Ok(step)
+    }
+
+    fn learning_rate(&self) -> f64 {
+        self.learning_rate
+    }
+
+    fn set_learning_rate(&mut self, lr: f64) {
+        self.learning_rate = lr;
+    }
+
+    fn set_schedule_factor(&mut self, factor: f64) {
+        self.schedule_factor = factor;
+    }
+
+    fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), TrainError> {
+        let effects = *self.terms.effects();
+        self.terms = PhysicsTerms::new(&self.garment, &fabric, &effects, &self.device)?
+            .with_fused(self.config.fused_physics);
+        self.filter = None;
+        Ok(())
+    }
+
+    fn set_window(&mut self, window_secs: f32) -> Result<(), TrainError> {
+        let next = TrainConfig {
+            window_secs,
+            ..self.config.clone()
+        };
+        next.validate()?;
+        self.config = next;
+        Ok(())
+    }
+}

@@ -1,0 +1,196 @@
+//! Loading a trained run for evaluation, baking and preview: the scene it was trained on, the
+//! network with the newest checkpoint's weights, and those weights in the inference layout.
+
+use std::path::Path;
+
+use burn::module::Module;
+use burn::tensor::Bytes;
+
+use neural_cloth_core::scene::{Avatar, Garment, Scene};
+use neural_cloth_model::{
+    ClothNet, InferenceEngine, InferenceOptions, InferenceWeights, ModelArtifact,
+};
+
+use super::checkpoint::MODEL_FILE;
+use super::resume::recorded_scene;
+use super::run_dir::{
+    RunDir, RunMeta, avatar_fingerprint, garment_fingerprint, garment_skin_fingerprint,
+};
+use super::{BackendKind, TrainError, device_for};
+
+/// A trained model ready to evaluate or bake.
+pub struct TrainedModel {
+    /// The run's description.
+    pub meta: RunMeta,
+    /// The scene it was trained on (rebuilt from `scene.toml`).
+    pub scene: Scene,
+    /// The network on the CPU device (no autodiff).
+    pub model: ClothNet,
+    /// The same weights for the fast inference engine, with the run's descriptor settings and
+    /// training frame rate.
+    pub artifact: ModelArtifact,
+    /// Step of the loaded checkpoint.
+    pub step: u64,
+    /// The run directory.
+    pub run: RunDir,
+    /// Problems met while loading (a damaged newer checkpoint skipped, scene warnings); the
+    /// CLI prints them, the app shows them.
+    pub warnings: Vec<String>,
+}
+
+impl TrainedModel {
+    /// A fresh inference engine of the trained model on the run's own scene (at the training
+    /// rate with the run's descriptor settings).
+    pub fn engine(&self, options: InferenceOptions) -> Result<InferenceEngine, TrainError> {
+        Ok(self
+            .artifact
+            .engine(&self.scene.avatar, &self.scene.garment, options)?)
+    }
+
+    /// [`Self::engine`] for the garment only (no body skinning).
+    pub fn garment_engine(&self) -> Result<InferenceEngine, TrainError> {
+        self.engine(InferenceOptions {
+            skin_body: false,
+            ..Default::default()
+        })
+    }
+
+    /// The posed body of every frame of `motion` when the run collides with the body (the
+    /// collision metric needs them), `None` otherwise.
+    pub fn bodies_of(
+        &self,
+        motion: &neural_cloth_core::scene::Motion,
+    ) -> Result<Option<Vec<std::sync::Arc<neural_cloth_physics::PosedBody>>>, TrainError> {
+        if !self.meta.effects.collision {
+            return Ok(None);
+        }
+        let bodies = motion
+            .frames
+            .iter()
+            .map(|p| {
+                neural_cloth_physics::PosedBody::from_avatar(&self.scene.avatar, p)
+                    .map(std::sync::Arc::new)
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Some(bodies))
+    }
+}
+
+/// Loads the newest checkpoint of the run at `run_dir` (a run directory, or a checkpoint folder
+/// inside one) with the scene it was trained on. A damaged newest checkpoint falls back to
+/// the previous complete one ([`TrainedModel::warnings`] says so); a run of which no
+/// checkpoint loads is an error naming the file.
+pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
+    let root = if run_dir.join("run.json").is_file() {
+        run_dir.to_path_buf()
+    } else {
+        // A checkpoint folder: RUN/checkpoints/step-N.
+        run_dir
+            .parent()
+            .and_then(|p| p.parent())
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| run_dir.to_path_buf())
+    };
+    let run = RunDir::open(&root)?;
+    let meta = run.meta()?;
+    let recorded = recorded_scene(&run)?;
+    let scene = recorded.scene;
+    refuse_changed_scene(&meta, &scene, &root)?;
+    let device = device_for(BackendKind::Cpu, false);
+    let loaded = run
+        .newest_loadable(|step| load_model(&run, &meta, step, &device))?
+        .ok_or_else(|| TrainError::Checkpoint(format!("no checkpoint in {}", root.display())))?;
+    let (model, weights) = loaded.value;
+    let mut warnings = recorded.warnings;
+    warnings.extend(loaded.warnings);
+    Ok(TrainedModel {
+        scene,
+        artifact: ModelArtifact::new(weights, meta.descriptors.clone(), meta.train.fps),
+        meta,
+        model,
+        step: loaded.step,
+        run,
+        warnings,
+    })
+}
+
+/// Refuses a recorded scene that no longer rebuilds what the run was trained on: another
+/// garment, another avatar, or the garment with other skin weights (smoothing passes).
+fn refuse_changed_scene(meta: &RunMeta, scene: &Scene, root: &Path) -> Result<(), TrainError> {
+    refuse_changed_parts(meta, &scene.avatar, &scene.garment, root)
+}
+
+/// Refuses an avatar and garment that are not those the run at `root` was trained on (see
+/// [`RunMeta`]'s fingerprints): another garment, another avatar, or the garment with other
+/// skin weights. The app checks a project's own parts with it before showing a run's weights
+/// on them.
+pub fn refuse_changed_parts(
+    meta: &RunMeta,
+    avatar: &Avatar,
+    garment: &Garment,
+    root: &Path,
+) -> Result<(), TrainError> {
+    if garment_fingerprint(garment) != meta.garment_fingerprint {
+        return Err(TrainError::Checkpoint(format!(
+            "the garment changed since training: the scene's garment '{}' no longer matches \
+             the one the run was trained on ('{}', {} vertices): {}",
+            garment.name,
+            meta.garment_name,
+            meta.garment_vertices,
+            root.display()
+        )));
+    }
+    if meta
+        .avatar_fingerprint
+        .is_some_and(|f| f != avatar_fingerprint(avatar))
+    {
+        return Err(TrainError::Checkpoint(format!(
+            "the avatar changed since training: the scene's avatar '{}' no longer matches the \
+             one the run was trained on (the garment is unchanged): {}",
+            avatar.name,
+            root.display()
+        )));
+    }
+    if meta
+        .garment_skin_fingerprint
+        .is_some_and(|f| f != garment_skin_fingerprint(garment))
+    {
+        return Err(TrainError::Checkpoint(format!(
+            "the garment's skin weights changed since training: the scene rebuilds '{}' with \
+             {} smoothing passes, not with the weights the run was trained on: {}",
+            garment.name,
+            garment.smoothing_passes,
+            root.display()
+        )));
+    }
+    Ok(())
+}
+
+/// The network of checkpoint `step`, and its weights in the inference layout.
+fn load_model(
+    run: &RunDir,
+    meta: &RunMeta,
+    step: u64,
+    device: &burn::tensor::Device,
+) -> Result<(ClothNet, InferenceWeights), TrainError> {
+    run.read_state(step)?;
+    let path = run.checkpoint_path(step).join(MODEL_FILE);
+    let bytes = run.read_checkpoint_file(step, MODEL_FILE)?;
+    let damaged = |e: String| TrainError::Corrupt {
+        reason: format!("the network cannot be read from the checkpoint ({e})"),
+        path: path.clone(),
+    };
+    let model = meta
+        .model
+        .init(meta.input_joints, meta.garment_vertices, device)?;
+    let record = burn::store::ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes))
+        .map_err(|e| damaged(e.to_string()))?;
+    let model = model
+        .try_load_record(record)
+        .map_err(|e| damaged(e.to_string()))?;
+    let weights = InferenceWeights::from_module(&model)?;
+    weights
+        .validate()
+        .map_err(|e| damaged(format!("invalid weights: {e}")))?;
+    Ok((model, weights))
+}
