@@ -38,8 +38,8 @@ use std::time::{Duration, Instant};
 
 use egui_kittest::kittest::Queryable;
 use egui_kittest::{Harness, SnapshotOptions};
+use neural_cloth::app::LoadKind;
 use neural_cloth::app::metrics::MetricRecord;
-use neural_cloth::app::panels::LoadKind;
 use neural_cloth::app::{
     AppError, AppOptions, NeuralClothApp, TrainerLauncher, TrainingRequest, TrainingState,
 };
@@ -342,7 +342,7 @@ fn loading_through_the_dialog_path_updates_the_scene() {
     let walk = assets().join("motions/cmu_02_01_walk.bvh");
     // `load_file` is what the Browse… dialog and the typed-path field call.
     assert!(
-        h.state_mut().load_file(LoadKind::Motion, &walk),
+        h.state_mut().state.load_file(LoadKind::Motion, &walk),
         "{:?}",
         h.state().state.last_error()
     );
@@ -361,14 +361,14 @@ fn loading_through_the_dialog_path_updates_the_scene() {
     // An avatar file replaces the avatar.
     let cesium = assets().join("avatars/CesiumMan.glb");
     assert!(
-        h.state_mut().load_file(LoadKind::Avatar, &cesium),
+        h.state_mut().state.load_file(LoadKind::Avatar, &cesium),
         "{:?}",
         h.state().state.last_error()
     );
     h.run();
     assert_eq!(h.state().state.scene.avatar.name, "CesiumMan");
     // A missing file is an error, not a panic.
-    assert!(!h.state_mut().load_file(
+    assert!(!h.state_mut().state.load_file(
         LoadKind::Garment,
         Path::new("../shared/assets/garments/missing.obj")
     ));

@@ -8,7 +8,7 @@ use neural_cloth::geometry::Vec3;
 use neural_cloth::io::export::obj_seq::obj_text;
 use neural_cloth::scene::procedural::{GarmentKind, builtin_garment, mannequin};
 
-use neural_cloth::app::panels::LoadKind;
+use neural_cloth::app::LoadKind;
 
 use super::{click, harness};
 

@@ -4,7 +4,7 @@
 
 use std::sync::Arc;
 
-use neural_cloth::app::panels::LoadKind;
+use neural_cloth::app::LoadKind;
 use neural_cloth::physics::FabricParams;
 use neural_cloth::scene::config::{GarmentSource, MotionSource, SceneConfig};
 use neural_cloth::scene::procedural::{GarmentKind, build_builtin};
@@ -60,7 +60,7 @@ fn a_run_records_the_apps_own_scene_description() {
         requests: requests.clone(),
     })));
     let walk = assets().join("motions/cmu_02_01_walk.bvh");
-    assert!(h.state_mut().load_file(LoadKind::Motion, &walk));
+    assert!(h.state_mut().state.load_file(LoadKind::Motion, &walk));
     h.state_mut().state.apply_preset("denim");
     h.run();
     click(&mut h, "Train");

@@ -8,9 +8,9 @@ use std::time::Duration;
 
 use egui_kittest::Harness;
 use egui_kittest::kittest::{NodeT, Queryable};
+use neural_cloth::app::confirm_panel::Confirm;
 use neural_cloth::app::file_picker::{DialogMode, desktop_dialog_possible};
 use neural_cloth::app::project::ProjectFile;
-use neural_cloth::app::runs_panel::Confirm;
 use neural_cloth::app::{AppOptions, NeuralClothApp, TrainingState};
 use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
 use neural_cloth::scene::config::GarmentSource;
@@ -372,7 +372,7 @@ fn every_motion_is_listed_with_its_split() {
             .iter()
             .zip(&s.scene.splits)
             .map(|(m, split)| {
-                let split = neural_cloth::app::panels::split_name(*split).to_string();
+                let split = neural_cloth::app::motions_panel::split_name(*split).to_string();
                 (m.name.clone(), split)
             })
             .collect()

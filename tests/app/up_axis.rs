@@ -4,7 +4,7 @@
 
 use egui_kittest::kittest::Queryable;
 
-use neural_cloth::app::panels::LoadKind;
+use neural_cloth::app::LoadKind;
 use neural_cloth::geometry::{Quat, Vec3};
 use neural_cloth::io::export::obj_seq::obj_text;
 use neural_cloth::scene::UpAxis;
@@ -29,9 +29,9 @@ fn the_up_axis_selector_turns_the_files_loaded_next() {
     h.get_by_label("Up axis").scroll_to_me();
     h.run();
     // On auto the lying skirt is not detected and does not fit the body.
-    assert!(!h.state_mut().load_file(LoadKind::Garment, &file));
+    assert!(!h.state_mut().state.load_file(LoadKind::Garment, &file));
     h.state_mut().state.typed.up = UpAxis::Z;
-    assert!(h.state_mut().load_file(LoadKind::Garment, &file));
+    assert!(h.state_mut().state.load_file(LoadKind::Garment, &file));
     let state = &h.state().state;
     let garment = state.scene.garment.as_ref().expect("garment");
     let gap = garment

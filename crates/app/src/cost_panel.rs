@@ -12,6 +12,7 @@ use neural_cloth_lab::report::accuracy::{CostOptions, CostResult, run_cost_exper
 
 use super::background::{BackgroundJob, poll_job};
 use super::error::AppError;
+use super::state::AppState;
 
 /// State of the Cost panel.
 pub struct CostPanel {
@@ -85,12 +86,25 @@ impl CostPanel {
     pub fn progress(&self) -> Option<Progress> {
         self.job.as_ref().and_then(BackgroundJob::progress)
     }
+
+    /// "Measure": starts the experiment on the state's scene (its garment, avatar, motions and
+    /// settings); why it cannot start becomes the result.
+    pub fn measure(&mut self, state: &AppState, notify: Arc<dyn Fn() + Send + Sync>) {
+        let started = match state.scene.garment.as_deref() {
+            Some(garment) => state
+                .assemble_scene(garment)
+                .and_then(|scene| self.start(scene, notify)),
+            None => Err(AppError::Missing("load a garment first")),
+        };
+        if let Err(e) = started {
+            self.result = Some(Err(e));
+        }
+    }
 }
 
 impl super::NeuralClothApp {
     /// The Cost panel: budget, run/cancel, progress and the accuracy/time table.
     pub fn cost_ui(&mut self, ui: &mut egui::Ui) {
-        self.cost.poll();
         egui::CollapsingHeader::new("Cost").default_open(false).show(ui, |ui| {
             ui.label("What accuracy costs in time on this scene: the reference simulator at several iteration budgets against the network trained for a few durations.");
             ui.horizontal(|ui| {
@@ -105,13 +119,7 @@ impl super::NeuralClothApp {
                 }
                 ui.ctx().request_repaint_after(std::time::Duration::from_millis(250));
             } else if ui.button("Measure").clicked() {
-                let started = match self.state.scene.garment.clone() {
-                    Some(garment) => self.state.assemble_scene(&garment).and_then(|scene| self.cost.start(scene, self.notify.clone())),
-                    None => Err(AppError::Missing("load a garment first")),
-                };
-                if let Err(e) = started {
-                    self.cost.result = Some(Err(e));
-                }
+                self.cost.measure(&self.state, self.notify.clone());
             }
             match &self.cost.result {
                 Some(Ok(r)) => cost_table_ui(ui, r),

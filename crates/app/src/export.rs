@@ -170,6 +170,18 @@ impl ExportSettings {
         self.confirm_overwrite = None;
     }
 
+    /// Takes the path chosen in the dialog's file browser, asked for as `format`: a file's
+    /// extension names its format (the OBJ sequence's folder names none); a pending overwrite
+    /// question is withdrawn.
+    pub fn set_picked_path(&mut self, path: &Path, format: ExportFormat) {
+        self.path = path.display().to_string();
+        self.format = match format {
+            ExportFormat::ObjSequence => format,
+            _ => ExportFormat::from_path(&self.path).unwrap_or(format),
+        };
+        self.confirm_overwrite = None;
+    }
+
     /// Every file (or folder) the export will write, as typed (relative to the working
     /// folder): the output, the body's sibling when asked for, the rest-pose OBJ when asked for.
     pub fn outputs(&self) -> Vec<PathBuf> {

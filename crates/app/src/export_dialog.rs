@@ -65,8 +65,9 @@ impl ExportJob {
 }
 
 impl NeuralClothApp {
-    /// The export dialog.
-    pub fn export_ui(&mut self, ui: &mut egui::Ui) {
+    /// Collects a finished export (once per frame): its summary or error goes to the status
+    /// messages and the dialog.
+    pub(crate) fn poll_export(&mut self) {
         if let Some(result) = self.export_job.poll() {
             match &result {
                 Ok(s) => self.state.message(Level::Info, s.clone()),
@@ -76,6 +77,10 @@ impl NeuralClothApp {
             }
             self.state.export.last_result = Some(result.map_err(|e| e.to_string()));
         }
+    }
+
+    /// The export dialog.
+    pub fn export_ui(&mut self, ui: &mut egui::Ui) {
         if !self.state.export.open {
             return;
         }

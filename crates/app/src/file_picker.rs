@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use super::export::ExportFormat;
 use super::file_browser::{BrowserAnswer, Choose, FileBrowser};
-use super::panels::LoadKind;
+use super::scene_edit::LoadKind;
 
 /// A desktop dialog that returns nothing faster than this never opened (no person cancels a
 /// dialog this fast): the in-app browser takes over, now and for the rest of the session.
@@ -63,7 +63,7 @@ impl PickPurpose {
     pub fn extensions(self) -> &'static [&'static str] {
         match self {
             Self::Load(kind) => kind.extensions(),
-            Self::OpenProject | Self::SaveProject => &[super::timeline::PROJECT_EXTENSION],
+            Self::OpenProject | Self::SaveProject => &[super::project::PROJECT_EXTENSION],
             Self::OpenRun | Self::RunsFolder => &[],
             Self::ExportPath(ExportFormat::ObjSequence) => &[],
             Self::ExportPath(format) => format.extensions(),
@@ -74,7 +74,7 @@ impl PickPurpose {
     pub fn default_name(self) -> String {
         match self {
             Self::ExportPath(format) => format.with_extension("export"),
-            _ => format!("project.{}", super::timeline::PROJECT_EXTENSION),
+            _ => format!("project.{}", super::project::PROJECT_EXTENSION),
         }
     }
 

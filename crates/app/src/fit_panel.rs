@@ -95,7 +95,7 @@ impl AppState {
         if !typed.is_empty() {
             return Some(PathBuf::from(typed));
         }
-        self.scene_file(super::panels::LoadKind::Garment)
+        self.scene_file(super::scene_edit::LoadKind::Garment)
     }
 
     /// Shows the outcome of a fit: loads the fitted garment (the viewport then shows it on
@@ -128,9 +128,6 @@ impl AppState {
 impl super::NeuralClothApp {
     /// The "Fit garment" row of the Scene section.
     pub fn fit_ui(&mut self, ui: &mut egui::Ui) {
-        if let Some(outcome) = self.fit.poll() {
-            self.state.apply_fit(outcome);
-        }
         ui.horizontal(|ui| {
             let target = self.state.garment_to_fit();
             let running = self.fit.is_running();

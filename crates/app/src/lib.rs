@@ -2,25 +2,31 @@
 //! opens it on the built-in default scene.
 //!
 //! - [`state::AppState`]: everything the app shows and edits, testable without a window.
-//! - [`NeuralClothApp`]: the eframe `App`; its panels are `*_ui(&mut self, ui)` functions that
-//!   only call into the state (no simulation or training logic here).
+//! - [`NeuralClothApp`]: the eframe `App`; its panels are `*_ui(&mut self, ui)` functions, one
+//!   panel per `*_panel.rs` file, that only call into the state (no simulation or training
+//!   logic here).
 //! - [`viewport::Viewport`]: the 3D view, drawn by [`neural_cloth_render`] through an `egui_wgpu`
 //!   paint callback into its own texture.
 //! - Training runs on the trainer's thread ([`training::TrainingControl`]); the UI drains its
 //!   events once per frame and never waits for it.
 
 pub mod background;
+pub mod confirm_panel;
 pub mod cost_panel;
 pub mod curve_math;
+pub mod effects_panel;
 pub mod error;
 pub mod export;
 pub mod export_dialog;
+pub mod fabric_panel;
 pub mod file_browser;
 pub mod file_picker;
+pub mod file_picker_panel;
 pub mod fit_panel;
 pub mod frame_builder;
+pub mod menu_panel;
 pub mod metrics;
-pub mod panels;
+pub mod motions_panel;
 pub mod playback;
 pub mod plot_panel;
 pub mod preview;
@@ -30,16 +36,20 @@ pub mod project_v1;
 pub mod runs;
 pub mod runs_panel;
 pub mod scene_edit;
+pub mod scene_panel;
 pub mod sim_check;
 pub mod state;
-pub mod timeline;
+pub mod status_panel;
+pub mod timeline_panel;
 pub mod training;
+pub mod training_panel;
 pub mod viewport;
 
 use std::path::PathBuf;
 use std::sync::Arc;
 
 pub use error::AppError;
+pub use scene_edit::LoadKind;
 pub use state::{AppState, SceneParts};
 pub use training::{TrainerLauncher, TrainingControl, TrainingRequest, TrainingState};
 pub use viewport::Viewport;
@@ -93,7 +103,7 @@ pub struct NeuralClothApp {
     /// The file dialogs (desktop or in-app).
     pub picker: file_picker::FilePicker,
     /// The question being asked before quitting or resetting.
-    pub confirm: Option<runs_panel::Confirm>,
+    pub confirm: Option<confirm_panel::Confirm>,
     /// Quitting was confirmed (or needed no question): the next close goes through.
     pub quit_confirmed: bool,
 }
@@ -143,17 +153,30 @@ impl NeuralClothApp {
         self.notify.clone()
     }
 
-    /// Per-frame work that is not drawing: trainer events, playback time.
+    /// Per-frame work that is not drawing: trainer events, finished background jobs,
+    /// playback time.
     fn tick(&mut self, ui: &egui::Ui) {
         self.handle_close_request(ui);
         self.state.poll_training();
         self.state.poll_run_load();
         self.state.sync_retention();
+        self.poll_jobs();
         let dt = ui.input(|i| i.stable_dt);
         self.state.advance(dt);
         if self.state.playback.playing || self.state.training.state().is_active() {
             ui.ctx().request_repaint();
         }
+    }
+
+    /// Collects the app's finished background jobs (fit, cost, simulation check, export),
+    /// whether or not their panels are open.
+    fn poll_jobs(&mut self) {
+        if let Some(outcome) = self.fit.poll() {
+            self.state.apply_fit(outcome);
+        }
+        self.cost.poll();
+        self.cost.check.poll();
+        self.poll_export();
     }
 
     /// Lays out every panel and the viewport.

@@ -18,6 +18,8 @@ use super::metrics::XAxis;
 /// Current project format version (2: the scene is a [`SceneConfig`]; 1: scene sources,
 /// fabric and effects apart, still read).
 pub const PROJECT_VERSION: u32 = 2;
+/// Extension offered for project files.
+pub const PROJECT_EXTENSION: &str = "toml";
 /// Entries kept in the recent-files list.
 pub const MAX_RECENT: usize = 10;
 

@@ -2,7 +2,8 @@
 //! [`SceneConfig`] and loads the changed part through the io layer's scene loader
 //! ([`SceneLoader`], the one loader the CLI and runs use too); opening a description (a
 //! project's scene) loads every part, keeping what loads. Every failure is a message naming
-//! the file, never a panic; a failed load leaves the scene as it was.
+//! the file, never a panic; a failed load leaves the scene as it was. [`LoadKind`] names the
+//! part a load targets (the Scene panel's rows, the file dialogs).
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -12,8 +13,38 @@ use neural_cloth_core::io::{IoError, JointMap};
 use neural_cloth_core::scene::config::{AvatarSource, GarmentSource, MotionSource};
 use neural_cloth_core::scene::{Avatar, Motion, SceneConfig, Split, UpAxis};
 
-use super::panels::LoadKind;
 use super::state::{AppState, Level, SceneParts};
+
+/// Which scene part a load targets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LoadKind {
+    /// Avatar (glTF/GLB).
+    Avatar,
+    /// Garment (OBJ/glTF).
+    Garment,
+    /// Motion (BVH).
+    Motion,
+}
+
+impl LoadKind {
+    /// Dialog title.
+    pub fn title(self) -> &'static str {
+        match self {
+            Self::Avatar => "Load avatar (glTF/GLB)",
+            Self::Garment => "Load garment (OBJ/glTF)",
+            Self::Motion => "Load motion (BVH)",
+        }
+    }
+
+    /// Extensions the dialog offers.
+    pub fn extensions(self) -> &'static [&'static str] {
+        match self {
+            Self::Avatar => &["glb", "gltf"],
+            Self::Garment => &["obj", "glb", "gltf"],
+            Self::Motion => &["bvh"],
+        }
+    }
+}
 
 /// A training motion source for the file at `path` (up axis `up`), retargeted with
 /// `joint_map`.
@@ -177,6 +208,30 @@ impl AppState {
                 false
             }
         }
+    }
+
+    /// Loads `path` as `kind` (a motion with the typed joint map, if any): the single path
+    /// used by the file dialogs, the typed fields and tests. Returns whether it loaded.
+    pub fn load_file(&mut self, kind: LoadKind, path: &Path) -> bool {
+        match kind {
+            LoadKind::Avatar => self.load_avatar(path),
+            LoadKind::Garment => self.load_garment(path),
+            LoadKind::Motion => {
+                let map = self.typed.joint_map.trim();
+                let map = (!map.is_empty()).then(|| PathBuf::from(map));
+                self.load_motion_mapped(path, map.as_deref())
+            }
+        }
+    }
+
+    /// Checks the typed joint map (when its field is left): `typed.joint_map_error` says why
+    /// the file does not read, None when it reads or the field is empty.
+    pub fn check_joint_map(&mut self) {
+        let text = self.typed.joint_map.trim();
+        self.typed.joint_map_error = match text.is_empty() {
+            true => None,
+            false => JointMap::load(Path::new(text)).err().map(|e| e.to_string()),
+        };
     }
 
     /// Loads a motion file (BVH, or the animations of a glTF file), retargets it onto the

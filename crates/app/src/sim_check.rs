@@ -106,7 +106,6 @@ impl SimCheck {
 impl super::NeuralClothApp {
     /// "Check against simulation": settings, start/cancel with progress, and the result.
     pub fn sim_check_ui(&mut self, ui: &mut egui::Ui) {
-        self.cost.check.poll();
         ui.separator();
         ui.strong("Check against simulation");
         ui.label("The current run's network against the reference simulator on the same motion: distance, swing and the paper's metrics.");

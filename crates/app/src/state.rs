@@ -304,6 +304,21 @@ impl AppState {
         }
     }
 
+    /// Applies an edit of the effects: switches off what their needs no longer allow
+    /// (friction needs collision and dynamics) and rebuilds the preview (dynamics changes
+    /// the network's layout).
+    pub fn effects_changed(&mut self) {
+        self.scene.config.effects.drop_unmet_needs();
+        self.preview.reset_scene();
+        self.scene.revision += 1;
+    }
+
+    /// Stops and forgets the training run (curves, preview weights); its folder stays.
+    pub fn reset_training(&mut self) {
+        self.training.reset();
+        self.preview.reset_scene();
+    }
+
     /// Sends the window length to a live run after an edit.
     pub fn window_changed(&mut self) {
         self.training.set_window(self.train_config.window_secs);

@@ -1,58 +1,13 @@
-//! The timeline row (play/pause, scrubbing, speed, the `w` slider) and the menu bar (project
-//! files, runs, recent files, export, quit; the export dialog is [`super::export_dialog`],
-//! the Runs section and the quit prompt [`super::runs_panel`]).
+//! The menu bar: File (project files, runs, recent files, export, quit; the export dialog is
+//! [`super::export_dialog`], the quit prompt [`super::confirm_panel`]) and View (curves, frame
+//! time, file browser, camera).
 
 use std::path::PathBuf;
 
 use super::NeuralClothApp;
 use super::file_picker::{DialogMode, PickPurpose};
-use super::playback::{MAX_SPEED, MIN_SPEED};
-
-/// Extension offered for project files.
-pub const PROJECT_EXTENSION: &str = "toml";
 
 impl NeuralClothApp {
-    /// Play/pause, time slider, speed and the dynamic weight `w` (0–2).
-    pub fn timeline_ui(&mut self, ui: &mut egui::Ui) {
-        let duration = self
-            .state
-            .current_motion()
-            .map_or(0.0, |m| m.duration_secs());
-        ui.horizontal(|ui| {
-            let playing = self.state.playback.playing;
-            if ui
-                .button(if playing { "Pause playback" } else { "Play" })
-                .clicked()
-            {
-                self.state.playback.playing = !playing;
-            }
-            let mut t = self.state.playback.time_secs;
-            let slider = egui::Slider::new(&mut t, 0.0..=duration.max(1e-3))
-                .text("time (s)")
-                .fixed_decimals(2);
-            if ui.add_enabled(duration > 0.0, slider).changed() {
-                self.state.playback.seek(t, duration);
-            }
-            ui.add(
-                egui::Slider::new(&mut self.state.playback.speed, MIN_SPEED..=MAX_SPEED)
-                    .logarithmic(true)
-                    .text("speed")
-                    .fixed_decimals(2),
-            );
-            let mut w = self.state.w;
-            let w_slider = egui::Slider::new(&mut w, 0.0..=2.0)
-                .text("w (dynamics)")
-                .fixed_decimals(2);
-            if ui
-                .add(w_slider)
-                .on_hover_text("0 = static, 1 = trained behaviour, 2 = exaggerated dynamics")
-                .changed()
-            {
-                self.state.set_w(w);
-            }
-        });
-    }
-
     /// "Save project": to the open project's file, else asks where.
     pub fn save_project_clicked(&mut self) {
         match self.state.project_path.clone() {

@@ -1,0 +1,114 @@
+//! The Training panel: window length, frame rate and the fit check; Train, Pause/Resume,
+//! Stop and Reset (asked first, [`super::confirm_panel`]); the progress, dead units and what
+//! the preview shows. Training runs on the trainer's thread ([`super::training`]).
+
+use super::NeuralClothApp;
+use super::training::TrainingState;
+
+impl NeuralClothApp {
+    /// Training settings, the control buttons and the progress indicator.
+    pub fn training_ui(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Training")
+            .default_open(true)
+            .show(ui, |ui| {
+                let state = self.state.training.state().clone();
+                let cfg = &mut self.state.train_config;
+                if ui
+                    .add(egui::Slider::new(&mut cfg.window_secs, 0.05..=4.0).text("window (s)"))
+                    .changed()
+                {
+                    self.state.window_changed();
+                }
+                ui.add_enabled(
+                    !state.is_active(),
+                    egui::Slider::new(&mut self.state.scene.config.training_fps, 5.0..=120.0)
+                        .integer()
+                        .text("fps"),
+                );
+                ui.add_enabled(
+                    !state.is_active(),
+                    egui::Checkbox::new(
+                        &mut self.state.train_config.fit_check,
+                        "check the garment's fit",
+                    ),
+                )
+                .on_hover_text(
+                    "Refuse a garment file that clearly does not fit the avatar (use Fit \
+                     garment first); untick to train on it as it is",
+                );
+                ui.horizontal_wrapped(|ui| {
+                    let can_start = !state.is_active();
+                    if ui
+                        .add_enabled(can_start, egui::Button::new("Train"))
+                        .clicked()
+                    {
+                        self.state.start_training(self.notifier());
+                    }
+                    match state {
+                        TrainingState::Running => {
+                            if ui.button("Pause").clicked() {
+                                self.state.training.pause();
+                            }
+                        }
+                        TrainingState::Paused => {
+                            if ui.button("Resume").clicked() {
+                                self.state.training.resume();
+                            }
+                        }
+                        _ => {
+                            ui.add_enabled(false, egui::Button::new("Pause"));
+                        }
+                    }
+                    if ui
+                        .add_enabled(
+                            matches!(state, TrainingState::Running | TrainingState::Paused),
+                            egui::Button::new("Stop"),
+                        )
+                        .clicked()
+                    {
+                        self.state.training.stop();
+                    }
+                    if ui
+                        .button("Reset")
+                        .on_hover_text("Stop and forget the run (curves, preview weights)")
+                        .clicked()
+                    {
+                        self.request_reset();
+                    }
+                });
+                let p = self.state.training.progress;
+                ui.label(format!("State: {}", state.label()));
+                let fraction = match p.max_steps {
+                    Some(m) if m > 0 => (p.step as f32 / m as f32).clamp(0.0, 1.0),
+                    _ => 0.0,
+                };
+                let text = format!(
+                    "step {} · {:.1} steps/s · {:.0} s",
+                    p.step, p.steps_per_sec, p.elapsed_secs
+                );
+                ui.add(
+                    egui::ProgressBar::new(fraction)
+                        .text(text)
+                        .animate(state == TrainingState::Running),
+                );
+                if let TrainingState::Finished(Err(e)) = &state {
+                    ui.colored_label(egui::Color32::from_rgb(255, 100, 90), e);
+                }
+                if let Some(v) = self.state.training.history.validation.last() {
+                    let text = format!(
+                        "dead units: {:.0} % (worst layer, step {})",
+                        v.dead_units_pct, v.step
+                    );
+                    if v.dead_units_pct >= self.state.train_config.dead_limit_pct {
+                        ui.colored_label(egui::Color32::from_rgb(255, 170, 60), text)
+                            .on_hover_text(
+                                "the trainer revives dead units when a layer passes the limit",
+                            );
+                    } else {
+                        ui.weak(text);
+                    }
+                }
+                ui.weak(format!("preview: {}", self.state.preview.describe()));
+            });
+    }
+}
