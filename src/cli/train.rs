@@ -120,10 +120,13 @@ pub struct TrainArgs {
     /// Steps over which the learning rate rises linearly to its value at the start (default 0)
     #[arg(long)]
     pub warmup_steps: Option<u64>,
-    /// Stiffness scale of the training gradient filter `D (D + βK)⁻¹`, 0..=100 (default 0:
-    /// off; see docs/TRAINING.md)
+    /// Stiffness scale of the training gradient filter `D (D + βK)⁻¹`, 0..=100 (0: off;
+    /// default 0.01; see docs/TRAINING.md)
     #[arg(long)]
     pub precondition: Option<f64>,
+    /// Filter the moving windows' gradient only (still windows keep the plain gradient)
+    #[arg(long)]
+    pub precondition_moving_only: bool,
     /// Only still windows train the static encoder (moving windows see its code detached;
     /// default: every window trains it; see docs/TRAINING.md).
     #[arg(long)]
@@ -292,6 +295,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(b) = args.precondition {
         train.precondition_stiffness = b;
+    }
+    if args.precondition_moving_only {
+        train.precondition_moving_only = true;
     }
     if let Some(f) = args.lr_final_factor {
         train.lr_final_factor = f;

@@ -68,6 +68,11 @@ impl GradientFilter {
     /// Filters `grad` (`[rows, V, 3]`, sample-major) in place; rows whose gradient is all zero
     /// are skipped.
     pub fn apply(&self, grad: &mut [f32]) -> Result<(), PhysicsError> {
+        self.apply_from(grad, 0)
+    }
+
+    /// [`Self::apply`] to rows `first..` only; the rows before keep the plain gradient.
+    pub fn apply_from(&self, grad: &mut [f32], first: usize) -> Result<(), PhysicsError> {
         let v = self.vertex_count();
         if v == 0 || !grad.len().is_multiple_of(v * 3) {
             return Err(PhysicsError::ShapeMismatch {
@@ -76,7 +81,8 @@ impl GradientFilter {
                 found: format!("{} values", grad.len()),
             });
         }
-        grad.par_chunks_mut(v * 3).for_each(|row| {
+        let skip = (first * v * 3).min(grad.len());
+        grad[skip..].par_chunks_mut(v * 3).for_each(|row| {
             if row.iter().all(|g| *g == 0.0) {
                 return;
             }
@@ -146,6 +152,9 @@ mod tests {
         f.apply(&mut g).unwrap();
         let norm = g.iter().map(|x| x * x).sum::<f32>().sqrt() / (n as f32).sqrt();
         assert!(norm < 0.2, "rough mode kept {norm} of its size");
+        let mut two = vec![1.0f32; 2 * n * 3];
+        f.apply_from(&mut two, 1).unwrap();
+        assert!(two[..n * 3].iter().all(|x| *x == 1.0) && two[n * 3..].iter().any(|x| *x != 1.0));
         let mut zero = vec![0.0f32; 2 * n * 3];
         f.apply(&mut zero).unwrap();
         assert!(zero.iter().all(|x| *x == 0.0));

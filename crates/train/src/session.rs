@@ -361,13 +361,15 @@ fn detach_from(z: Tensor<3>, from: usize) -> Tensor<3> {
 }
 
 /// `Σ x_net · sg(F(∂total/∂x))`, F the gradient filter: its gradient with respect to the
-/// network's output `x_net` is the filtered physics gradient. `x` is the detached leaf copy of
-/// `x_net` that `total` was computed from.
+/// network's output `x_net` is the filtered physics gradient (the first `plain_rows` rows of
+/// `[B·K, V, 3]` keep the plain one). `x` is the detached leaf copy of `x_net` that `total` was
+/// computed from.
 fn filtered_surrogate(
     filter: &GradientFilter,
     x_net: &Tensor<4>,
     x: &Tensor<4>,
     total: Tensor<1>,
+    plain_rows: usize,
 ) -> Result<Tensor<1>, TrainError> {
     let dims = x.dims();
     let grads = total.backward();
@@ -377,7 +379,7 @@ fn filtered_surrogate(
             .map_err(|e| neural_cloth_physics::PhysicsError::Backend(e.to_string()))?,
         None => vec![0.0; dims.iter().product()],
     };
-    filter.apply(&mut g)?;
+    filter.apply_from(&mut g, plain_rows)?;
     let g = Tensor::<4>::from_data(TensorData::new(g, dims), &x_net.device());
     Ok((x_net.clone() * g).sum())
 }
@@ -475,7 +477,15 @@ impl Session for NeuralSession {
         let loss = total.clone().into_scalar::<f64>();
         let grads = match filter {
             None => total.backward(),
-            Some(filter) => filtered_surrogate(&filter, &x_net, &x, total)?.backward(),
+            Some(filter) => {
+                // Rows of `x` are sample-major (`[B, K]`); still windows come first.
+                let plain_rows = if self.config.precondition_moving_only {
+                    still * predicted
+                } else {
+                    0
+                };
+                filtered_surrogate(&filter, &x_net, &x, total, plain_rows)?.backward()
+            }
         };
         let grads = GradientsParams::from_grads(grads, &self.model);
         self.optim.step(
