@@ -148,11 +148,6 @@ impl CompiledNet {
                 .sum::<usize>()
     }
 
-    /// Bytes of weight storage outside the basis.
-    pub fn layer_bytes(&self) -> usize {
-        self.weight_bytes() - self.basis.bytes()
-    }
-
     /// Widest activation of the encoders and the decoder MLP (scratch buffer size).
     pub fn max_width(&self) -> usize {
         let mut w = self
