@@ -523,7 +523,7 @@ fn train_pause_resume_stop_through_the_buttons() {
     assert_eq!(*h.state().state.training.state(), TrainingState::Running);
     let request_fps = requests
         .lock()
-        .map(|r| r.first().map(|q| q.config.fps))
+        .map(|r| r.first().map(|q| q.scene.training_fps))
         .ok()
         .flatten();
     assert_eq!(

@@ -835,7 +835,7 @@ fn the_gradient_filter_trains_the_pinned_skirt_with_every_effect() {
         precondition_stiffness: -1.0,
         ..quick_config()
     };
-    assert!(bad.validate().is_err());
+    assert!(bad.validate(30.0).is_err());
 }
 
 /// Issue 11: the loss on several trailing frames of each window (`loss_frames`) trains the
@@ -891,7 +891,7 @@ fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
         loss_frames: 8,
         ..quick_config()
     };
-    assert!(too_many.validate().is_err());
+    assert!(too_many.validate(30.0).is_err());
 }
 
 /// Issue 11: the pinned waistband of a skirt must stay at its skinned place in training, as it

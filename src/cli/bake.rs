@@ -194,7 +194,7 @@ pub fn run(args: BakeArgs) -> anyhow::Result<()> {
     for w in &trained.warnings {
         eprintln!("warning: {w}");
     }
-    let fps = trained.meta.train.fps;
+    let fps = trained.meta.training_fps;
     let motion = find_motion(
         &trained.scene,
         &args.output.motion,

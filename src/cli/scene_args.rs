@@ -25,6 +25,9 @@ pub struct SceneArgs<'a> {
     pub joint_map: Option<&'a Path>,
     /// Up axis of every file source left on auto (the files named here and the scene file's).
     pub up: UpAxis,
+    /// Training frame rate replacing the scene's `training_fps`, frames per second; None:
+    /// the scene's own.
+    pub training_fps: Option<f32>,
 }
 
 impl<'a> SceneArgs<'a> {
@@ -42,6 +45,7 @@ impl<'a> SceneArgs<'a> {
             || self.motions.is_some()
             || self.joint_map.is_some()
             || self.up != UpAxis::Auto
+            || self.training_fps.is_some()
     }
 }
 
@@ -90,6 +94,9 @@ pub fn scene_config_from_args(args: &SceneArgs<'_>) -> anyhow::Result<(SceneConf
         }
     }
     set_up_where_auto(&mut config, args.up);
+    if let Some(fps) = args.training_fps {
+        config.training_fps = fps;
+    }
     // Paths stored in the run must not depend on the working directory.
     config.map_paths(|p| absolute(&SceneConfig::resolve_path(&dir, p)));
     Ok((config, dir))
@@ -222,5 +229,18 @@ mod tests {
             ..SceneArgs::file(None)
         };
         assert!(args.edits_scene() && !SceneArgs::file(None).edits_scene());
+    }
+
+    #[test]
+    fn fps_sets_the_scene_training_rate() {
+        let args = SceneArgs {
+            training_fps: Some(60.0),
+            ..SceneArgs::file(None)
+        };
+        assert!(args.edits_scene());
+        let (config, _) = scene_config_from_args(&args).unwrap();
+        assert_eq!(config.training_fps, 60.0);
+        let (config, _) = scene_config_from_args(&SceneArgs::file(None)).unwrap();
+        assert_eq!(config.training_fps, 30.0);
     }
 }

@@ -314,7 +314,6 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     )?;
     anyhow::ensure!(!scene.motions.is_empty(), "the scene has no motion");
     let train = TrainConfig {
-        fps: scene.training_fps,
         max_minutes: Some(args.minutes),
         ..Default::default()
     };

@@ -78,7 +78,9 @@ pub struct TrainArgs {
     /// Temporal window in seconds.
     #[arg(long)]
     pub window: Option<f32>,
-    /// Training frame rate.
+    /// Training frame rate in frames per second, 5..=240, replacing the scene's
+    /// `training_fps` (default: the scene's, 30 in the built-in scene); a resumed run keeps
+    /// the rate it was trained at.
     #[arg(long)]
     pub fps: Option<f32>,
     /// Random seed.
@@ -172,6 +174,7 @@ impl TrainArgs {
             motions: self.motions.as_deref(),
             joint_map: self.joint_map.as_deref(),
             up: self.up,
+            training_fps: self.fps,
         }
     }
 }
@@ -185,15 +188,28 @@ pub enum Backend {
     Wgpu,
 }
 
-/// The scene a resumed run recorded and its training settings; refused when a scene given
-/// on the command line differs from the recorded one.
+/// The scene a resumed run recorded, at the rate the run trained at, and its training
+/// settings; refused when a scene given on the command line differs from the recorded one,
+/// or `--fps` from the run's rate.
 fn resumed_scene(
     dir: &Path,
     args: &TrainArgs,
 ) -> anyhow::Result<(neural_cloth::scene::Scene, SceneConfig, TrainConfig)> {
     let run = RunDir::open(dir)?;
     let meta = run.meta()?;
-    let scene_args = args.scene_args();
+    if let Some(fps) = args.fps
+        && fps != meta.training_fps
+    {
+        bail!(
+            "the run was trained at {} frames per second and goes on at that rate; leave \
+             --fps {fps} out to resume it",
+            meta.training_fps
+        );
+    }
+    let scene_args = SceneArgs {
+        training_fps: None,
+        ..args.scene_args()
+    };
     if args.scene.is_some() || scene_args.edits_scene() {
         let recorded = resume::recorded_config(&run)?;
         let (given, _) = scene_config_from_args(&scene_args)?;
@@ -205,10 +221,14 @@ fn resumed_scene(
             );
         }
     }
-    let recorded = resume::recorded_scene(&run)?;
+    let mut recorded = resume::recorded_scene(&run)?;
     for w in &recorded.warnings {
         eprintln!("warning: {w}");
     }
+    // The rate the run trained at (a run trained with --fps before the rate had one home
+    // recorded the scene's own in scene.toml).
+    recorded.scene.training_fps = meta.training_fps;
+    recorded.config.training_fps = meta.training_fps;
     Ok((recorded.scene, recorded.config, meta.train))
 }
 
@@ -218,11 +238,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         Some(dir) => resumed_scene(dir, &args)?,
         None => {
             let (scene, config) = scene_from_args(&args.scene_args())?;
-            let train = TrainConfig {
-                fps: scene.training_fps,
-                ..Default::default()
-            };
-            (scene, config, train)
+            (scene, config, TrainConfig::default())
         }
     };
     match args.backend {
@@ -241,9 +257,6 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(w) = args.window {
         train.window_secs = w;
-    }
-    if let Some(f) = args.fps {
-        train.fps = f;
     }
     if let Some(s) = args.seed {
         train.seed = s;

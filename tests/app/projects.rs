@@ -89,7 +89,7 @@ fn a_run_records_the_apps_own_scene_description() {
     // One fabric: the scene's, in the description and the scene built from it.
     let denim = FabricParams::preset("denim").expect("preset");
     assert_eq!((&config.fabric, &request.scene.fabric), (&denim, &denim));
-    assert_eq!(request.config.fps, config.training_fps);
+    assert_eq!(request.scene.training_fps, config.training_fps);
     click(&mut h, "Stop");
 }
 

@@ -16,12 +16,13 @@ use neural_cloth::scene::GarmentOptions;
 use neural_cloth::scene::config::SceneConfig;
 use neural_cloth::scene::procedural::{GarmentKind, build_builtin, builtin_garment};
 use neural_cloth::train::handle::Session;
-use neural_cloth::train::{RunLocation, TrainConfig, TrainSetup, Trainer, load_trained, prepare};
+use neural_cloth::train::{
+    RunDir, RunLocation, TrainConfig, TrainSetup, Trainer, load_trained, prepare,
+};
 
-/// Settings of a run that only needs a few steps.
-fn few_steps(fps: f32) -> TrainConfig {
+/// Settings of a run that only needs a few steps (at its scene's training rate).
+fn few_steps() -> TrainConfig {
     TrainConfig {
-        fps,
         max_steps: Some(2),
         predrape_secs: 0.0,
         fit_check: false,
@@ -73,7 +74,7 @@ fn bake_of_a_60_fps_model_steps_at_60_fps() {
     let (mut session, _) = prepare(TrainSetup {
         scene: scene.clone(),
         scene_config,
-        train: few_steps(60.0),
+        train: few_steps(),
         model: super::small_model(),
         descriptors: DescriptorConfig::default(),
         fabric: None,
@@ -84,6 +85,12 @@ fn bake_of_a_60_fps_model_steps_at_60_fps() {
     // What the trainer sends the app: the weights with the rate they are trained at.
     let mut snapshot = session.snapshot().unwrap();
     assert_eq!(snapshot.fps, 60.0);
+    // The run records the rate it trains at, for eval, compare, bake and resume.
+    let meta = RunDir::open(&dir.path().join("run"))
+        .unwrap()
+        .meta()
+        .unwrap();
+    assert_eq!(meta.training_fps, 60.0);
     // A fresh network's offsets are micrometres; make them large enough to compare.
     snapshot
         .weights
@@ -163,7 +170,7 @@ fn skirt_loaded_in_the_app_evaluates_from_the_cli_with_the_same_smoothing() {
     let setup = TrainSetup {
         scene,
         scene_config: app.scene.config.clone(),
-        train: few_steps(30.0),
+        train: few_steps(),
         model: super::small_model(),
         descriptors: DescriptorConfig::default(),
         fabric: None,

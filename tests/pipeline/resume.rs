@@ -68,6 +68,36 @@ fn resume_trains_on_the_recorded_scene_and_refuses_a_different_one() {
     );
     assert!(log.trim_end().ends_with("run/scene.toml"), "{log}");
     assert!(snapshot(&run) == before, "the run changed");
+    // A run goes on at the rate it was trained at (issue 14: the scene's, recorded in run.json).
+    let (ok, log) = cli(
+        &["train", "--resume", "run", "--fps", "60", "--steps", "5"],
+        dir.path(),
+    );
+    assert!(
+        !ok && log.contains("trained at 30 frames per second"),
+        "{log}"
+    );
+    assert!(snapshot(&run) == before, "the run changed");
+    let (mut scene, scene_config) = super::tiny();
+    scene.training_fps = 60.0;
+    let refused = neural_cloth::train::prepare(neural_cloth::train::TrainSetup {
+        scene,
+        scene_config,
+        train: super::quick_config(),
+        model: super::small_model(),
+        descriptors: neural_cloth::model::DescriptorConfig::default(),
+        fabric: None,
+        location: neural_cloth::train::RunLocation::Resume(run.clone()),
+    })
+    .err()
+    .expect("a scene at another rate is refused");
+    assert!(
+        refused
+            .to_string()
+            .contains("trained at 30 frames per second, the scene is at 60"),
+        "{refused}"
+    );
+    assert!(snapshot(&run) == before, "the run changed");
 }
 
 #[test]

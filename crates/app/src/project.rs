@@ -16,7 +16,10 @@ use neural_cloth_train::TrainConfig;
 use super::metrics::XAxis;
 
 /// Current project format version (2: the scene is a [`SceneConfig`]; 1: scene sources,
-/// fabric and effects apart, still read).
+/// fabric and effects apart, still read). Version-2 files written before issue 14 also carry
+/// `training.fps` (equal to `scene.training_fps`): read and dropped (`take_training_fps`);
+/// files without it stay version 2, since earlier builds read them as they are (they took
+/// the rate from the scene too).
 pub const PROJECT_VERSION: u32 = 2;
 /// Extension offered for project files.
 pub const PROJECT_EXTENSION: &str = "toml";
@@ -88,8 +91,8 @@ pub struct ProjectFile {
     /// The scene: avatar, garment and motions (built in or files, motions with their splits),
     /// effects, fabric and the training frame rate.
     pub scene: SceneConfig,
-    /// Training configuration (window, batch, schedule); its `fps` is written equal to
-    /// `scene.training_fps` and replaced by it when read.
+    /// Training configuration (window, batch, schedule); the frame rate is the scene's
+    /// `training_fps` (a `fps` key of earlier files is dropped when read).
     pub training: TrainConfig,
     /// Folder new runs are written under; None = `runs/` beside the project file. Read from
     /// `run_dir` too (its name in earlier files).
@@ -173,7 +176,6 @@ impl ProjectFile {
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let base = std::path::absolute(&base).unwrap_or(base);
         let mut copy = self.clone();
-        copy.training.fps = copy.scene.training_fps;
         copy.map_paths(|p| {
             relative_to(
                 &std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()),
@@ -198,7 +200,7 @@ impl ProjectFile {
             reason,
             path: path.to_path_buf(),
         };
-        let table: toml::Table = text
+        let mut table: toml::Table = text
             .parse()
             .map_err(|e: toml::de::Error| parse(e.to_string()))?;
         let version = match table.get("version") {
@@ -210,9 +212,13 @@ impl ProjectFile {
         };
         let mut project = match version {
             Some(1) => super::project_v1::convert(table).map_err(parse)?,
-            Some(PROJECT_VERSION) => toml::Value::Table(table)
-                .try_into::<ProjectFile>()
-                .map_err(|e| parse(e.to_string()))?,
+            Some(PROJECT_VERSION) => {
+                // The rate's one home is `scene.training_fps`.
+                take_training_fps(&mut table).map_err(parse)?;
+                toml::Value::Table(table)
+                    .try_into::<ProjectFile>()
+                    .map_err(|e| parse(e.to_string()))?
+            }
             _ => {
                 return Err(parse(format!(
                     "version {} (this build reads versions 1 to {PROJECT_VERSION})",
@@ -222,7 +228,6 @@ impl ProjectFile {
                 )));
             }
         };
-        project.training.fps = project.scene.training_fps;
         project.check().map_err(parse)?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         project.map_paths(|p| resolve(p, &base));
@@ -236,7 +241,7 @@ impl ProjectFile {
             .validate_values()
             .map_err(|e| format!("scene: {e}"))?;
         self.training
-            .validate()
+            .validate(self.scene.training_fps)
             .map_err(|e| format!("training: {e}"))?;
         let w = self.view.w;
         if !(w.is_finite() && (0.0..=2.0).contains(&w)) {
@@ -250,6 +255,24 @@ impl ProjectFile {
             ));
         }
         Ok(())
+    }
+}
+
+/// Removes the `training.fps` key earlier project files wrote (the training rate before it
+/// had one home, the scene's `training_fps`) and returns its value, frames per second; `None`
+/// when the file has none. A value that is not a number is an error naming the key.
+pub(crate) fn take_training_fps(table: &mut toml::Table) -> Result<Option<f32>, String> {
+    let Some(training) = table
+        .get_mut("training")
+        .and_then(toml::Value::as_table_mut)
+    else {
+        return Ok(None);
+    };
+    match training.remove("fps") {
+        None => Ok(None),
+        Some(toml::Value::Float(f)) => Ok(Some(f as f32)),
+        Some(toml::Value::Integer(i)) => Ok(Some(i as f32)),
+        Some(other) => Err(format!("training.fps = {other} is not a number")),
     }
 }
 
@@ -354,10 +377,35 @@ mod tests {
                 && !text.contains(&*dir.path().to_string_lossy()),
             "{text}"
         );
-        let back = ProjectFile::open(&file).unwrap();
         // The training rate has one home, the scene's.
-        p.training.fps = 60.0;
+        let table: toml::Table = text.parse().unwrap();
+        assert_eq!(table["scene"]["training_fps"].as_float(), Some(60.0));
+        assert!(table["training"].get("fps").is_none(), "{text}");
+        let back = ProjectFile::open(&file).unwrap();
         assert_eq!(back, p);
+    }
+
+    /// Issue 14: version-2 projects written while the rate lived in the training config too
+    /// carry `training.fps`, equal to the scene's; they still open, at the scene's rate.
+    #[test]
+    fn a_version_2_project_with_the_old_training_fps_opens_at_the_scene_rate() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut p = ProjectFile::default();
+        p.scene.training_fps = 60.0;
+        p.training.window_secs = 1.0;
+        let file = dir.path().join("old.toml");
+        p.save(&file).unwrap();
+        let text = std::fs::read_to_string(&file).unwrap();
+        assert!(text.contains("[training]\n"), "{text}");
+        for old in ["fps = 60.0", "fps = 60"] {
+            let old = text.replace("[training]\n", &format!("[training]\n{old}\n"));
+            std::fs::write(&file, old).unwrap();
+            assert_eq!(ProjectFile::open(&file).unwrap(), p);
+        }
+        let bad = text.replace("[training]\n", "[training]\nfps = \"fast\"\n");
+        std::fs::write(&file, bad).unwrap();
+        let err = ProjectFile::open(&file).unwrap_err().to_string();
+        assert!(err.contains("training.fps"), "{err}");
     }
 
     #[test]

@@ -1,19 +1,20 @@
 //! Project files of the first layout (version 1, before the scene became a [`SceneConfig`]):
 //! `[scene]` named the avatar, garment and extra BVH motion files (none: the built-in parts),
-//! with `[fabric]`, `[effects]` and the training rate apart. They are read and converted to the
-//! current layout; the app saves them in the current one.
+//! with `[fabric]`, `[effects]` and the training rate apart (`[training] fps`, default 30).
+//! They are read and converted to the current layout, the rate into `scene.training_fps`; the
+//! app saves them in the current one.
 
 use std::path::PathBuf;
 
 use serde::Deserialize;
 
 use neural_cloth_core::scene::config::{
-    AvatarSource, GarmentSource, MotionSource, SceneConfig, Split,
+    AvatarSource, DEFAULT_TRAINING_FPS, GarmentSource, MotionSource, SceneConfig, Split,
 };
 use neural_cloth_core::scene::{Effects, FabricParams, UpAxis};
 use neural_cloth_train::TrainConfig;
 
-use super::project::{PROJECT_VERSION, ProjectFile, ViewSettings};
+use super::project::{PROJECT_VERSION, ProjectFile, ViewSettings, take_training_fps};
 
 /// Where a version-1 scene came from: `None` means the built-in default.
 #[derive(Debug, Default, Deserialize)]
@@ -36,6 +37,7 @@ struct ProjectFileV1 {
     scene: SceneSources,
     fabric: FabricParams,
     effects: Effects,
+    /// The training settings without their `fps` (taken out before: [`take_training_fps`]).
     training: TrainConfig,
     #[serde(alias = "run_dir")]
     runs_folder: Option<PathBuf>,
@@ -67,7 +69,10 @@ pub fn looks_like_v1(table: &toml::Table) -> bool {
 /// avatar and garment; a loaded avatar brought its own animations (all training) and replaced
 /// the built-in motions; extra BVH motions trained; a garment file's skin weights were
 /// smoothed by its name's rule (the loader's default).
-pub fn convert(table: toml::Table) -> Result<ProjectFile, String> {
+pub fn convert(mut table: toml::Table) -> Result<ProjectFile, String> {
+    let training_fps = take_training_fps(&mut table)
+        .map_err(|e| format!("version 1 project: {e}"))?
+        .unwrap_or(DEFAULT_TRAINING_FPS);
     let old: ProjectFileV1 = toml::Value::Table(table)
         .try_into()
         .map_err(|e: toml::de::Error| format!("version 1 project: {e}"))?;
@@ -106,7 +111,7 @@ pub fn convert(table: toml::Table) -> Result<ProjectFile, String> {
         .extend(old.scene.motions.iter().cloned().map(file_motion));
     scene.effects = old.effects;
     scene.fabric = old.fabric;
-    scene.training_fps = old.training.fps;
+    scene.training_fps = training_fps;
     Ok(ProjectFile {
         version: PROJECT_VERSION,
         scene,
@@ -199,7 +204,7 @@ w = 1.5
         assert_eq!(s.fabric.density_kg_per_m2, 0.41);
         assert_eq!(s.fabric.bending_stiffness, 1e-4);
         assert!(!s.effects.dynamics);
-        assert_eq!((s.training_fps, p.training.fps), (60.0, 60.0));
+        assert_eq!(s.training_fps, 60.0);
         assert_eq!(p.training.window_secs, 1.0);
         assert_eq!(p.run, Some(dir.path().join("runs/run-1")));
         assert_eq!(p.view.w, 1.5);
@@ -301,5 +306,6 @@ mod layout_tests {
         let project = ProjectFile::open(&path).unwrap();
         assert!(!project.scene.effects.dynamics);
         assert!(matches!(project.scene.garment, GarmentSource::File { .. }));
+        assert_eq!(project.scene.training_fps, 60.0);
     }
 }

@@ -222,7 +222,7 @@ impl AppState {
             // The settings it trained with, as its run.json records them.
             config.effects = meta.effects;
             config.fabric = meta.fabric.clone();
-            config.training_fps = meta.train.fps;
+            config.training_fps = meta.training_fps;
             self.train_config = meta.train.clone();
             self.show_parts(SceneParts::from_scene(scene, config));
         } else if !(same_sources && self.scene.garment.is_some()) {

@@ -149,7 +149,7 @@ impl CurveSettings {
 pub struct AppState {
     /// The scene (with its fabric, effects and training frame rate).
     pub scene: SceneState,
-    /// Training configuration; its `fps` follows the scene's training rate when a run starts.
+    /// Training configuration (the frame rate is the scene's, `scene.config.training_fps`).
     pub train_config: TrainConfig,
     /// Runs: the folder new runs go to, the run shown, recent runs, checkpoint retention.
     pub runs: super::runs::RunsState,
@@ -211,10 +211,7 @@ struct FrameKey {
 impl AppState {
     /// A state showing `parts` (the built-in default scene at start-up).
     pub fn new(parts: SceneParts, training: TrainingControl, recent: RecentFiles) -> Self {
-        let train_config = TrainConfig {
-            fps: parts.config.training_fps,
-            ..TrainConfig::default()
-        };
+        let train_config = TrainConfig::default();
         Self {
             scene: SceneState {
                 config: parts.config,
@@ -348,11 +345,8 @@ impl AppState {
             self.message(Level::Error, "load a garment before training");
             return;
         };
-        let config = TrainConfig {
-            fps: self.scene.config.training_fps,
-            ..self.train_config.clone()
-        };
-        if let Err(e) = config.validate() {
+        let config = self.train_config.clone();
+        if let Err(e) = config.validate(self.scene.config.training_fps) {
             self.message(Level::Error, e.to_string());
             return;
         }

@@ -55,7 +55,7 @@ pub struct TrainingRequest {
     /// Avatar, garment, motions with splits, effects, fabric and training frame rate, as
     /// loaded from `scene_config`.
     pub scene: Arc<Scene>,
-    /// Window, batch and schedule (its `fps` is the scene's training rate).
+    /// Window, batch and schedule (the frame rate is `scene.training_fps`).
     pub config: TrainConfig,
     /// Where checkpoints go.
     pub run_dir: PathBuf,

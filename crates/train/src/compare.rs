@@ -312,7 +312,7 @@ pub fn compare(
 ) -> Result<CompareReport, TrainError> {
     options.validate()?;
     let motions = pick_motions(trained, motion)?;
-    let fps = trained.meta.train.fps;
+    let fps = trained.meta.training_fps;
     let device = device_for(BackendKind::Cpu, false);
     let scene = &trained.scene;
     let terms = PhysicsTerms::new(

@@ -1,4 +1,6 @@
-//! Training configuration: batch, temporal window, frame rate, optimiser and schedule.
+//! Training configuration: batch, temporal window, optimiser and schedule. The frame rate is
+//! the scene's ([`neural_cloth_core::scene::Scene::training_fps`]): the methods that need it
+//! take it as an argument.
 
 use serde::{Deserialize, Serialize};
 
@@ -36,8 +38,6 @@ pub struct TrainConfig {
     pub batch_size: usize,
     /// Temporal window in seconds; 0.05..=4, default 0.5 (looser garments need up to 2 s).
     pub window_secs: f32,
-    /// Frame rate the motions are resampled to for training, in fps; 5..=240, default 30.
-    pub fps: f32,
     /// Adam learning rate; (0, 1], default 1e-3.
     pub learning_rate: f64,
     /// Stop after this many optimiser steps (None = no limit). Default None.
@@ -139,7 +139,6 @@ impl Default for TrainConfig {
         Self {
             batch_size: 16,
             window_secs: 0.5,
-            fps: 30.0,
             learning_rate: 1e-3,
             max_steps: None,
             max_minutes: None,
@@ -181,19 +180,20 @@ pub struct ConfigError {
     pub range: &'static str,
 }
 
+/// The training frame rates the trainer takes, frames per second ([`TrainConfig::validate`]).
+pub const TRAINING_FPS_RANGE: std::ops::RangeInclusive<f32> = 5.0..=240.0;
+
 impl TrainConfig {
-    /// Frames per training window: `ceil(window_secs * fps) + 3` (the last 3 are predicted).
-    pub fn window_frames(&self) -> usize {
-        (self.window_secs * self.fps).ceil().max(0.0) as usize + 3
+    /// Frames per training window at `fps` (the scene's training rate, frames per second):
+    /// `ceil(window_secs * fps) + 3` (the last 3 are predicted).
+    pub fn window_frames(&self, fps: f32) -> usize {
+        (self.window_secs * fps).ceil().max(0.0) as usize + 3
     }
 
-    /// Time step between frames in seconds.
-    pub fn dt_secs(&self) -> f32 {
-        1.0 / self.fps
-    }
-
-    /// Checks every field against its documented range.
-    pub fn validate(&self) -> Result<(), ConfigError> {
+    /// Checks every field against its documented range, for training at `fps` (the scene's
+    /// training rate, frames per second): the rate itself must lie in [`TRAINING_FPS_RANGE`]
+    /// and the window at that rate must hold the loss frames.
+    pub fn validate(&self, fps: f32) -> Result<(), ConfigError> {
         fn check(
             ok: bool,
             field: &'static str,
@@ -223,9 +223,9 @@ impl TrainConfig {
             "0.05..=4 s",
         )?;
         check(
-            (5.0..=240.0).contains(&self.fps),
-            "fps",
-            self.fps,
+            TRAINING_FPS_RANGE.contains(&fps),
+            "training_fps",
+            fps,
             "5..=240",
         )?;
         check(
@@ -290,7 +290,7 @@ impl TrainConfig {
             "(0, 1]",
         )?;
         check(
-            (1..=16).contains(&self.loss_frames) && self.loss_frames + 2 <= self.window_frames(),
+            (1..=16).contains(&self.loss_frames) && self.loss_frames + 2 <= self.window_frames(fps),
             "loss_frames",
             self.loss_frames,
             "1..=16 and at most the window's frames minus 2",
@@ -376,32 +376,43 @@ mod tests {
     #[test]
     fn window_frames_follow_the_paper() {
         let c = TrainConfig::default();
-        assert_eq!(c.window_frames(), 15 + 3);
+        assert_eq!(c.window_frames(30.0), 15 + 3);
         let c = TrainConfig {
             window_secs: 0.1,
-            fps: 60.0,
             ..Default::default()
         };
-        assert_eq!(c.window_frames(), 6 + 3);
+        assert_eq!(c.window_frames(60.0), 6 + 3);
     }
 
     #[test]
     fn validation_names_the_field() {
-        assert!(TrainConfig::default().validate().is_ok());
+        assert!(TrainConfig::default().validate(30.0).is_ok());
         let e = TrainConfig {
             window_secs: 0.0,
             ..Default::default()
         }
-        .validate()
+        .validate(30.0)
         .unwrap_err();
         assert_eq!(e.field, "window_secs");
         let e = TrainConfig {
             batch_size: 0,
             ..Default::default()
         }
-        .validate()
+        .validate(30.0)
         .unwrap_err();
         assert_eq!(e.field, "batch_size");
+        // The rate is the scene's: checked against the trainer's range by its own name.
+        let e = TrainConfig::default().validate(2.0).unwrap_err();
+        assert_eq!(e.field, "training_fps");
+        // The loss frames must fit the window at the given rate: 0.25 s holds 8 + 3 frames at
+        // 30 fps, 15 + 3 at 60.
+        let short = TrainConfig {
+            window_secs: 0.25,
+            loss_frames: 12,
+            ..Default::default()
+        };
+        assert_eq!(short.validate(30.0).unwrap_err().field, "loss_frames");
+        assert!(short.validate(60.0).is_ok());
     }
 
     #[test]

@@ -38,7 +38,7 @@ pub struct EvalReport {
 /// Evaluates `trained` on the motions of `split` at dynamic weight `w`.
 pub fn evaluate(trained: &TrainedModel, split: Split, w: f32) -> Result<EvalReport, TrainError> {
     let scene = &trained.scene;
-    let fps = trained.meta.train.fps;
+    let fps = trained.meta.training_fps;
     let device = device_for(BackendKind::Cpu, false);
     let terms = PhysicsTerms::new(
         &scene.garment,

@@ -2,7 +2,8 @@
 //!
 //! - [`Trainer::spawn`] prepares a run (data, model, physics, run directory) on the trainer
 //!   thread and returns a [`TrainerHandle`] at once; the app and the CLI use exactly this API.
-//! - [`config::TrainConfig`]: batch, window, rate, optimiser, schedule.
+//! - [`config::TrainConfig`]: batch, window, optimiser, schedule (the frame rate is the
+//!   scene's, [`Scene::training_fps`]).
 //! - [`data`]: motions → descriptors, skinning matrices and windows.
 //! - [`session::NeuralSession`]: one optimiser step, validation, checkpoints.
 //! - [`run_dir`]: the run directory layout (resume, eval, bake); [`checkpoint`]: crash-safe
@@ -161,11 +162,12 @@ pub enum RunLocation {
 
 /// Everything a run needs.
 pub struct TrainSetup {
-    /// The loaded scene.
+    /// The loaded scene; the run trains at its [`Scene::training_fps`] (a resumed run's scene
+    /// must have the rate the run recorded).
     pub scene: Scene,
     /// Its description, saved with the run (file paths should be absolute).
     pub scene_config: SceneConfig,
-    /// Training settings.
+    /// Training settings (without the frame rate: the scene's).
     pub train: TrainConfig,
     /// Network architecture (the encoder becomes static-only when the scene has no dynamics).
     pub model: ClothNetConfig,
@@ -191,7 +193,7 @@ impl Trainer {
         setup: TrainSetup,
         notify: Option<Arc<dyn Fn() + Send + Sync>>,
     ) -> Result<TrainerHandle, TrainError> {
-        setup.train.validate()?;
+        setup.train.validate(setup.scene.training_fps)?;
         TrainerHandle::spawn_with(move || prepare(setup), notify)
             .map_err(|e| TrainError::io(e, Path::new("trainer thread")))
     }
@@ -222,7 +224,8 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         fabric,
         location,
     } = setup;
-    train.validate()?;
+    let fps = scene.training_fps;
+    train.validate(fps)?;
     let Settings {
         resumed,
         mut model,
@@ -237,13 +240,13 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         && model.dynamic_input_scale.is_empty()
     {
         model.dynamic_input_scale =
-            data::dynamic_scale_of(&scene.avatar, &scene.motions, train.fps, &descriptors)?;
+            data::dynamic_scale_of(&scene.avatar, &scene.motions, fps, &descriptors)?;
     }
     let device = device_for(train.backend, true);
     device.seed(train.seed);
     let avatar = Arc::new(scene.avatar);
     let garment = Arc::new(scene.garment);
-    let (train_data, validation) = datasets(&avatar, &scene.motions, &train, &descriptors)?;
+    let (train_data, validation) = datasets(&avatar, &scene.motions, &train, fps, &descriptors)?;
     let (run, resume) = match (resumed, &location) {
         (Some((run, _)), _) => (run, true),
         (None, RunLocation::NewUnder(parent)) => (RunDir::fresh_under(parent)?, false),
@@ -265,7 +268,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
             &fabric,
             &scene.effects,
             train.predrape_secs,
-            train.fps,
+            fps,
             PREDRAPE_ITERATIONS,
         )?;
         warm_start::set_basis_bias_to_drape(&mut net, &garment, &drape, &device)?;
@@ -277,6 +280,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         let meta = RunMeta {
             version: run_dir::RUN_VERSION,
             train: train.clone(),
+            training_fps: fps,
             model: model.clone(),
             descriptors: descriptors.clone(),
             fabric: fabric.clone(),
@@ -295,6 +299,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         device,
         model: net,
         config: train.clone(),
+        fps,
         descriptors: descriptors.clone(),
         terms,
         lbs,
@@ -420,32 +425,26 @@ fn loop_config(
     }
 }
 
-/// The training and validation data of `motions`.
+/// The training and validation data of `motions`, resampled to `fps`.
 fn datasets(
     avatar: &neural_cloth_core::scene::Avatar,
     motions: &[(neural_cloth_core::scene::Motion, Split)],
     train: &TrainConfig,
+    fps: f32,
     descriptors: &DescriptorConfig,
 ) -> Result<(Dataset, Dataset), TrainError> {
     let train_data = Dataset::new(
         avatar,
         motions,
         Split::Train,
-        train.fps,
+        fps,
         descriptors,
         train.mirror_poses,
     )?;
     if train_data.is_empty() {
         return Err(TrainError::Data("no motion in the train split".into()));
     }
-    let validation = Dataset::new(
-        avatar,
-        motions,
-        Split::Validation,
-        train.fps,
-        descriptors,
-        false,
-    )?;
+    let validation = Dataset::new(avatar, motions, Split::Validation, fps, descriptors, false)?;
     Ok((train_data, validation))
 }
 
@@ -460,10 +459,20 @@ fn refuse_existing_run(dir: &Path) -> Result<(), TrainError> {
     Ok(())
 }
 
-/// The run at `dir` and its description, refused when `scene` has another garment or avatar.
+/// The run at `dir` and its description, refused when `scene` has another garment, avatar or
+/// training rate.
 fn open_for_resume(dir: &Path, scene: &Scene) -> Result<(RunDir, RunMeta), TrainError> {
     let run = RunDir::open(dir)?;
     let meta = run.meta()?;
+    if meta.training_fps != scene.training_fps {
+        return Err(TrainError::Checkpoint(format!(
+            "the run was trained at {} frames per second, the scene is at {}; a run goes on at \
+             its own rate: {}",
+            meta.training_fps,
+            scene.training_fps,
+            run.root.display()
+        )));
+    }
     let garment = &scene.garment;
     if meta.garment_fingerprint != garment_fingerprint(garment)
         || meta.garment_vertices != garment.vertex_count()

@@ -1,8 +1,8 @@
 //! Run directories: everything needed to resume, evaluate or bake a trained model.
 //!
 //! ```text
-//! RUN/run.json                  RunMeta: train + model + descriptor configs, fabric, effects,
-//!                               garment, garment skin and avatar fingerprints
+//! RUN/run.json                  RunMeta: train + model + descriptor configs, training rate,
+//!                               fabric, effects, garment, garment skin and avatar fingerprints
 //! RUN/scene.toml                the scene description (file paths absolute)
 //! RUN/metrics.json              the metric history up to the newest checkpoint
 //! RUN/latest.json               {"step": N} of the newest complete checkpoint
@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use neural_cloth_core::io::export::atomic::write_atomic;
+use neural_cloth_core::scene::config::DEFAULT_TRAINING_FPS;
 use neural_cloth_core::scene::{Avatar, Garment};
 use neural_cloth_model::{ClothNetConfig, DescriptorConfig};
 use neural_cloth_physics::{Effects, FabricParams};
@@ -28,7 +29,13 @@ use super::metrics::MetricHistory;
 /// How many checkpoints to keep (older ones are deleted).
 pub const KEEP_CHECKPOINTS: usize = 3;
 /// The newest run folder format this program reads and writes ([`RunMeta::version`]).
-pub const RUN_VERSION: u32 = 1;
+///
+/// - 1: the training rate in `run.json` as `train.fps` (30 when left out).
+/// - 2: the training rate as `training_fps` at the top of `run.json` (issue 14: the rate's one
+///   home is the scene; `TrainConfig` has none). Version-1 files are converted when read
+///   ([`RunDir::meta`]); a program that reads version 1 only refuses version 2 by its number
+///   instead of taking its missing `train.fps` for 30.
+pub const RUN_VERSION: u32 = 2;
 
 /// Description of a run, written once at its start.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -37,6 +44,11 @@ pub struct RunMeta {
     pub version: u32,
     /// Training settings.
     pub train: TrainConfig,
+    /// Frame rate the run trained at, frames per second (the scene's
+    /// [`neural_cloth_core::scene::Scene::training_fps`], 5..=240): its model steps,
+    /// evaluates, compares and bakes at this rate, and a resume must keep it. Read from
+    /// `train.fps` in version-1 files ([`RunDir::meta`]).
+    pub training_fps: f32,
     /// Network architecture.
     pub model: ClothNetConfig,
     /// Descriptor settings.
@@ -160,6 +172,29 @@ pub fn avatar_fingerprint(avatar: &Avatar) -> u64 {
     fnv.0
 }
 
+/// A `run.json` of version 1 in the layout of version 2: its training rate moves from
+/// `train.fps` (the old `TrainConfig` field; 30, its default, when left out) to
+/// `training_fps`. Other versions and values are returned unchanged.
+fn upgrade_v1(mut meta: serde_json::Value) -> serde_json::Value {
+    let Some(map) = meta.as_object_mut() else {
+        return meta;
+    };
+    if map
+        .get("version")
+        .and_then(serde_json::Value::as_u64)
+        .is_none_or(|v| v >= 2)
+    {
+        return meta;
+    }
+    let fps = map
+        .get_mut("train")
+        .and_then(serde_json::Value::as_object_mut)
+        .and_then(|train| train.remove("fps"))
+        .unwrap_or_else(|| DEFAULT_TRAINING_FPS.into());
+    map.entry("training_fps").or_insert(fps);
+    meta
+}
+
 impl RunDir {
     /// A run directory at `root` (created if missing).
     pub fn create(root: &Path) -> Result<Self, TrainError> {
@@ -214,24 +249,27 @@ impl RunDir {
         Ok(())
     }
 
-    /// Reads `run.json`.
+    /// Reads `run.json` (a version-1 file converted: [`RUN_VERSION`]); a newer version is
+    /// refused by its number.
     pub fn meta(&self) -> Result<RunMeta, TrainError> {
         let path = self.root.join("run.json");
         let bytes = std::fs::read(&path).map_err(|e| TrainError::io(e, &path))?;
-        let meta: RunMeta = serde_json::from_slice(&bytes).map_err(|e| TrainError::Corrupt {
+        let corrupt = |e: serde_json::Error| TrainError::Corrupt {
             reason: format!("unreadable run description ({e})"),
             path: path.clone(),
-        })?;
-        if meta.version > RUN_VERSION {
+        };
+        let value: serde_json::Value = serde_json::from_slice(&bytes).map_err(corrupt)?;
+        if let Some(version) = value.get("version").and_then(serde_json::Value::as_u64)
+            && version > u64::from(RUN_VERSION)
+        {
             return Err(TrainError::Corrupt {
                 reason: format!(
-                    "the run folder has format version {}, newer than this program reads ({RUN_VERSION})",
-                    meta.version
+                    "the run folder has format version {version}, newer than this program reads ({RUN_VERSION})"
                 ),
                 path,
             });
         }
-        Ok(meta)
+        serde_json::from_value(upgrade_v1(value)).map_err(corrupt)
     }
 
     /// The scene description text.
@@ -265,5 +303,77 @@ impl RunDir {
             reason: format!("unreadable metric history ({e})"),
             path,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn meta(training_fps: f32) -> RunMeta {
+        RunMeta {
+            version: RUN_VERSION,
+            train: TrainConfig::default(),
+            training_fps,
+            model: ClothNetConfig::default(),
+            descriptors: DescriptorConfig::default(),
+            fabric: FabricParams::default(),
+            effects: Effects::default(),
+            input_joints: 3,
+            garment_vertices: 4,
+            garment_fingerprint: 5,
+            garment_name: "shirt".into(),
+            avatar_fingerprint: Some(6),
+            garment_skin_fingerprint: None,
+        }
+    }
+
+    /// A run folder with `meta` as its `run.json`.
+    fn run_with(dir: &Path, meta: &serde_json::Value) -> RunDir {
+        let run = RunDir::create(dir).unwrap();
+        std::fs::write(dir.join("run.json"), serde_json::to_vec(meta).unwrap()).unwrap();
+        run
+    }
+
+    #[test]
+    fn the_training_rate_is_written_once_and_read_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let written = serde_json::to_value(meta(60.0)).unwrap();
+        assert_eq!(written["training_fps"], 60.0);
+        assert_eq!(written["version"], RUN_VERSION);
+        assert!(written["train"].get("fps").is_none(), "{written}");
+        let read = run_with(dir.path(), &written).meta().unwrap();
+        assert_eq!(read.training_fps, 60.0);
+    }
+
+    /// Issue 14: runs written before the rate moved to `RunMeta::training_fps` carry it as
+    /// `train.fps` (version 1); they still load at their own rate.
+    #[test]
+    fn an_old_run_json_keeps_its_training_rate() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut old = serde_json::to_value(meta(0.0)).unwrap();
+        let map = old.as_object_mut().unwrap();
+        map.remove("training_fps");
+        map.insert("version".into(), 1.into());
+        map["train"]
+            .as_object_mut()
+            .unwrap()
+            .insert("fps".into(), 60.0.into());
+        let read = run_with(dir.path(), &old).meta().unwrap();
+        assert_eq!((read.version, read.training_fps), (1, 60.0));
+        assert_eq!(read.train, TrainConfig::default());
+        assert_eq!(read.garment_name, "shirt");
+        // A version-1 file that left the rate out had the old default.
+        old["train"].as_object_mut().unwrap().remove("fps");
+        let read = run_with(dir.path(), &old).meta().unwrap();
+        assert_eq!(read.training_fps, 30.0);
+        // A version-2 file must name its rate; a newer version is refused by its number.
+        let mut new = serde_json::to_value(meta(60.0)).unwrap();
+        new.as_object_mut().unwrap().remove("training_fps");
+        let e = run_with(dir.path(), &new).meta().unwrap_err().to_string();
+        assert!(e.contains("training_fps"), "{e}");
+        new["version"] = 99.into();
+        let e = run_with(dir.path(), &new).meta().unwrap_err().to_string();
+        assert!(e.contains("format version 99"), "{e}");
     }
 }

@@ -50,6 +50,8 @@ pub struct NeuralSession {
     /// Factor of the learning-rate schedule on `learning_rate` (checkpoints keep the latter).
     schedule_factor: f64,
     config: TrainConfig,
+    /// Training frame rate (the scene's), frames per second.
+    fps: f32,
     descriptors: DescriptorConfig,
     terms: PhysicsTerms,
     lbs: GarmentLbs,
@@ -76,6 +78,9 @@ pub struct SessionParts {
     pub model: ClothNet,
     /// Training settings.
     pub config: TrainConfig,
+    /// Training frame rate, frames per second: the scene's `training_fps` (the rate the data
+    /// were resampled to), in the trainer's range 5..=240.
+    pub fps: f32,
     /// Descriptor settings of the training data (travel with the weight snapshots).
     pub descriptors: DescriptorConfig,
     /// Physics terms of the garment.
@@ -108,6 +113,7 @@ impl NeuralSession {
             learning_rate: parts.config.learning_rate,
             schedule_factor: 1.0,
             config: parts.config,
+            fps: parts.fps,
             descriptors: parts.descriptors,
             terms: parts.terms,
             lbs: parts.lbs,
@@ -133,7 +139,7 @@ impl NeuralSession {
             self.filter = Some(Arc::new(GradientFilter::new(
                 self.terms.rest(),
                 self.terms.fabric(),
-                self.config.dt_secs(),
+                self.dt_secs(),
                 beta,
             )?));
         }
@@ -344,9 +350,14 @@ impl NeuralSession {
         MetricRecord::from_metrics(self.terms.fabric().cloth_model, metrics, loss)
     }
 
-    /// Frames of the configured window.
+    /// Frames of the configured window at the training rate.
     fn window_frames(&self) -> usize {
-        self.config.window_frames()
+        self.config.window_frames(self.fps)
+    }
+
+    /// Time step between frames at the training rate, seconds.
+    fn dt_secs(&self) -> f32 {
+        1.0 / self.fps
     }
 }
 
@@ -445,13 +456,13 @@ impl Session for NeuralSession {
                 stack_frames(&x, 0, predicted - 2, kept),
             );
             let inertia = match self.config.inertia_mode {
-                InertiaMode::Ours => self.terms.inertia(&xt, &xt1, &xt2, self.config.dt_secs()),
+                InertiaMode::Ours => self.terms.inertia(&xt, &xt1, &xt2, self.dt_secs()),
                 InertiaMode::Snug => super::losses::inertia_through_past(
                     &self.terms,
                     &xt,
                     &xt1,
                     &xt2,
-                    self.config.dt_secs(),
+                    self.dt_secs(),
                 ),
             };
             if let Some(inertia) = inertia {
@@ -500,7 +511,7 @@ impl Session for NeuralSession {
         let history = History {
             x_t1: head(frame(&x, predicted - 2)),
             x_t2: head(frame(&x, predicted - 3)),
-            dt_secs: self.config.dt_secs(),
+            dt_secs: self.dt_secs(),
             friction: friction.map(|fc| fc.narrow((predicted - 3) * b, n)),
         };
         // The last frame's block of the stacked contacts.
@@ -544,10 +555,7 @@ impl Session for NeuralSession {
             .total()
             .map(|t| t.into_scalar::<f64>())
             .unwrap_or(0.0);
-        if let Some(i) = self
-            .terms
-            .inertia(&x_t, &x_t1, &x_t2, self.config.dt_secs())
-        {
+        if let Some(i) = self.terms.inertia(&x_t, &x_t1, &x_t2, self.dt_secs()) {
             loss += i.into_scalar::<f64>();
         }
         let friction = match &contacts {
@@ -570,7 +578,7 @@ impl Session for NeuralSession {
         let history = History {
             x_t1,
             x_t2,
-            dt_secs: self.config.dt_secs(),
+            dt_secs: self.dt_secs(),
             friction,
         };
         let metrics = self
@@ -613,7 +621,7 @@ impl Session for NeuralSession {
         Ok(ModelArtifact::new(
             weights,
             self.descriptors.clone(),
-            self.config.fps,
+            self.fps,
         ))
     }
 
@@ -659,7 +667,7 @@ impl Session for NeuralSession {
             window_secs,
             ..self.config.clone()
         };
-        next.validate()?;
+        next.validate(self.fps)?;
         self.config = next;
         Ok(())
     }

@@ -22,7 +22,9 @@ use super::{BackendKind, TrainError, device_for};
 pub struct TrainedModel {
     /// The run's description.
     pub meta: RunMeta,
-    /// The scene it was trained on (rebuilt from `scene.toml`).
+    /// The scene it was trained on (rebuilt from `scene.toml`), at the rate the run trained at
+    /// ([`RunMeta::training_fps`]; a run trained with `train --fps` before issue 14 recorded
+    /// the scene's own rate in `scene.toml`).
     pub scene: Scene,
     /// The network on the CPU device (no autodiff).
     pub model: ClothNet,
@@ -94,7 +96,8 @@ pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
     let run = RunDir::open(&root)?;
     let meta = run.meta()?;
     let recorded = recorded_scene(&run)?;
-    let scene = recorded.scene;
+    let mut scene = recorded.scene;
+    scene.training_fps = meta.training_fps;
     refuse_changed_scene(&meta, &scene, &root)?;
     let device = device_for(BackendKind::Cpu, false);
     let loaded = run
@@ -105,7 +108,7 @@ pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
     warnings.extend(loaded.warnings);
     Ok(TrainedModel {
         scene,
-        artifact: ModelArtifact::new(weights, meta.descriptors.clone(), meta.train.fps),
+        artifact: ModelArtifact::new(weights, meta.descriptors.clone(), meta.training_fps),
         meta,
         model,
         step: loaded.step,

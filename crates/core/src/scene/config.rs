@@ -21,6 +21,10 @@ mod sources;
 pub use effects::Effects;
 pub use sources::{AvatarSource, BuiltinAvatar, GarmentSource, LengthUnit, MotionSource};
 
+/// The training frame rate of a scene that names none ([`SceneConfig::training_fps`]), frames
+/// per second: 30.
+pub const DEFAULT_TRAINING_FPS: f32 = 30.0;
+
 /// Errors of scene configuration files.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
@@ -97,8 +101,10 @@ pub struct SceneConfig {
     /// (`[fabric] preset = "denim"`, `bending_stiffness = 1e-4`); default: the "default" preset.
     #[serde(default, with = "super::fabric::table")]
     pub fabric: FabricParams,
-    /// Frame rate motions are resampled to for training, frames per second, [1, 1000],
-    /// default 30.
+    /// Frame rate motions are resampled to for training, frames per second, [1, 1000] (the
+    /// trainer takes 5..=240), default [`DEFAULT_TRAINING_FPS`] (30). The one home of the
+    /// training rate: a run records it (`RUN/scene.toml`, `RunMeta::training_fps`) and its
+    /// model steps, evaluates and bakes at it.
     #[serde(default = "default_training_fps")]
     pub training_fps: f32,
 }
@@ -110,7 +116,7 @@ pub(crate) fn default_duration() -> f32 {
     6.0
 }
 fn default_training_fps() -> f32 {
-    30.0
+    DEFAULT_TRAINING_FPS
 }
 
 fn invalid(field: impl Into<String>, reason: impl Into<String>) -> ConfigError {

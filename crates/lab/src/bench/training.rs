@@ -29,6 +29,8 @@ use super::{peak_rss_bytes, reset_peak_rss};
 const PREDICTED_FRAMES: usize = 3;
 /// Steps run before timing starts (the first ones allocate the optimiser state).
 const WARM_UP_STEPS: usize = 2;
+/// Training frame rate of the benchmarked scene, frames per second.
+const BENCH_FPS: f32 = 30.0;
 /// Seconds each matrix-product shape is timed at least.
 const MATMUL_SECS: f64 = 0.3;
 
@@ -195,6 +197,8 @@ struct Prepared {
     case: TrainCase,
     session: neural_cloth_train::session::NeuralSession,
     train: TrainConfig,
+    /// Training frame rate of the scene, frames per second.
+    fps: f32,
     dir: std::path::PathBuf,
 }
 
@@ -204,6 +208,7 @@ impl Prepared {
     fn new(case: TrainCase, predrape_secs: Option<f32>, tag: usize) -> Result<Self, String> {
         let mut config = SceneConfig::default_scene();
         config.effects = case.effects;
+        config.training_fps = BENCH_FPS;
         let scene = build_builtin(&config).map_err(|e| e.to_string())?;
         let dir = std::env::temp_dir().join(format!(
             "neural-cloth-bench-{}-{}-{tag}",
@@ -214,7 +219,6 @@ impl Prepared {
         let train = TrainConfig {
             batch_size: case.batch,
             window_secs: 0.5,
-            fps: 30.0,
             fused_physics: case.fused_physics,
             fused_adam: case.fused_adam,
             predrape_secs: predrape_secs.unwrap_or(defaults.predrape_secs),
@@ -234,6 +238,7 @@ impl Prepared {
             case,
             session,
             train,
+            fps: BENCH_FPS,
             dir,
         })
     }
@@ -296,13 +301,13 @@ pub fn bench_cases(
         let flops = step_flops(
             model,
             run.case.batch,
-            run.train.window_frames(),
+            run.train.window_frames(run.fps),
             PREDICTED_FRAMES,
         );
         out.push(TrainBench {
             case: run.case,
             window_secs: run.train.window_secs,
-            fps: run.train.fps,
+            fps: run.fps,
             ms_per_step: super::median_ms(&mut t),
             peak_bytes: 0,
             flops,
@@ -349,7 +354,7 @@ fn time_matmul(device: &Device, m: usize, k: usize, n: usize) -> f64 {
 /// frame, the GRU's step; `vertices` garment vertices, `joints` input joints.
 pub fn measure_matmul_rates(batch: usize, vertices: usize, joints: usize) -> Vec<MatmulRate> {
     let device = neural_cloth_train::device_for(neural_cloth_train::BackendKind::Cpu, false);
-    let frames = TrainConfig::default().window_frames();
+    let frames = TrainConfig::default().window_frames(BENCH_FPS);
     let (rows, window_rows) = (batch * PREDICTED_FRAMES, batch * frames);
     let latent = ClothNetConfig::default().latent;
     let dof = 3 * vertices;

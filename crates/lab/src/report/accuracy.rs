@@ -378,7 +378,6 @@ pub fn run_cost_experiment(
         scene: scene.clone(),
         config: None,
         train: TrainConfig {
-            fps,
             seed: options.seed,
             ..options.train.clone()
         },

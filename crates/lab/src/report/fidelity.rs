@@ -282,7 +282,6 @@ pub fn run_fidelity(
     let ablation_budget = 0.44 * options.budget_secs / 4.0;
     let spin_budget = 0.44 * options.budget_secs / 2.0;
     let base = TrainConfig {
-        fps,
         seed: options.seed,
         batch_size: 16,
         window_secs: 0.5,

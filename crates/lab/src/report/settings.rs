@@ -69,8 +69,8 @@ struct Variant {
     group: &'static str,
     label: String,
     scene: Scene,
+    /// Its description; the training rate is `scene.training_fps` (and the description's).
     config: Option<SceneConfig>,
-    fps: f32,
     window_secs: f32,
 }
 
@@ -78,13 +78,17 @@ struct Variant {
 /// garments only), and each declared effect off.
 fn variants(scene: &Scene, config: &SceneConfig) -> Result<Vec<Variant>, ReportError> {
     let fps = scene.training_fps;
-    let base = |group, label: String, scene: Scene, fps, window_secs| Variant {
-        group,
-        label,
-        scene,
-        config: Some(config.clone()),
-        fps,
-        window_secs,
+    let base = |group, label: String, mut scene: Scene, fps, window_secs| {
+        let mut config = config.clone();
+        scene.training_fps = fps;
+        config.training_fps = fps;
+        Variant {
+            group,
+            label,
+            scene,
+            config: Some(config),
+            window_secs,
+        }
     };
     let mut out = vec![base(
         "baseline",
@@ -131,7 +135,6 @@ fn variants(scene: &Scene, config: &SceneConfig) -> Result<Vec<Variant>, ReportE
                 label,
                 scene: s,
                 config: Some(c),
-                fps,
                 window_secs: 0.5,
             });
         }
@@ -157,7 +160,6 @@ fn variants(scene: &Scene, config: &SceneConfig) -> Result<Vec<Variant>, ReportE
                 label: label.into(),
                 scene: s,
                 config: Some(c),
-                fps,
                 window_secs: 0.5,
             });
         }
@@ -185,7 +187,6 @@ pub fn run_settings(
             scene: v.scene.clone(),
             config: v.config.clone(),
             train: TrainConfig {
-                fps: v.fps,
                 window_secs: v.window_secs,
                 seed: options.seed,
                 ..TrainConfig::default()
@@ -231,7 +232,10 @@ pub fn run_settings(
             .into_iter()
             .find_map(|s| v.scene.motions_in(s).next());
         let poses = motion
-            .map(|m| poses_at(m, v.fps, (v.fps as usize).max(10)))
+            .map(|m| {
+                let fps = v.scene.training_fps;
+                poses_at(m, fps, (fps as usize).max(10))
+            })
             .unwrap_or_default();
         engines.push((engine_for(&run.weights, &v.scene)?, poses));
     }
@@ -251,17 +255,17 @@ pub fn run_settings(
             v.scene.effects.collision,
             v.scene.effects.dynamics,
         ];
+        let fps = v.scene.training_fps;
         let window_frames = TrainConfig {
-            fps: v.fps,
             window_secs: v.window_secs,
             ..TrainConfig::default()
         }
-        .window_frames();
+        .window_frames(fps);
         rows.push(SettingRow {
             group: v.group.into(),
             label: v.label,
             vertices: v.scene.garment.vertex_count(),
-            fps: v.fps,
+            fps,
             window_secs: v.window_secs,
             window_frames,
             effects,
