@@ -32,6 +32,8 @@ mod corrupt;
 mod crash;
 #[path = "pipeline/disk_full.rs"]
 mod disk_full;
+#[path = "pipeline/filter.rs"]
+mod filter;
 #[path = "pipeline/fixture.rs"]
 mod fixture;
 #[path = "pipeline/resume.rs"]
@@ -780,62 +782,6 @@ fn pinning_and_every_other_effect_act_in_training() {
             "turning {name} off changed nothing in training"
         );
     }
-}
-
-/// Issue 11: the gradient filter (`precondition_stiffness`) trains the pinned skirt with every
-/// effect on, finite; the loss it reports is the physics loss (the first step, before any
-/// update, scores the same with and without it) and the update it makes is another.
-#[test]
-fn the_gradient_filter_trains_the_pinned_skirt_with_every_effect() {
-    let losses = |beta: f64, moving_only: bool| {
-        let dir = tempfile::tempdir().unwrap();
-        let (scene, scene_config) = tiny_skirt(|e| e.friction = true);
-        let (mut session, _) = prepare(TrainSetup {
-            scene,
-            scene_config,
-            train: TrainConfig {
-                precondition_stiffness: beta,
-                precondition_moving_only: moving_only,
-                predrape_secs: 0.0,
-                ..quick_config()
-            },
-            model: small_model(),
-            descriptors: DescriptorConfig::default(),
-            fabric: None,
-            location: RunLocation::At(dir.path().to_path_buf()),
-        })
-        .unwrap();
-        let steps: Vec<f64> = (0..3)
-            .map(|_| {
-                let step = session.step().unwrap();
-                assert!(step.is_finite(), "{step:?}");
-                step.loss
-            })
-            .collect();
-        assert!(session.validate().unwrap().is_finite());
-        steps
-    };
-    let plain = losses(0.0, false);
-    let filtered = losses(0.01, false);
-    let moving = losses(0.01, true);
-    let relative = |a: f64, b: f64| (a - b).abs() / a.abs().max(b.abs()).max(1e-12);
-    assert!(
-        relative(plain[0], filtered[0]) < 1e-6,
-        "{plain:?} {filtered:?}"
-    );
-    assert!(
-        relative(plain[2], filtered[2]) > 1e-6,
-        "{plain:?} {filtered:?}"
-    );
-    assert!(
-        relative(filtered[2], moving[2]) > 1e-6,
-        "{filtered:?} {moving:?}"
-    );
-    let bad = TrainConfig {
-        precondition_stiffness: -1.0,
-        ..quick_config()
-    };
-    assert!(bad.validate(30.0).is_err());
 }
 
 /// Issue 11: the loss on several trailing frames of each window (`loss_frames`) trains the

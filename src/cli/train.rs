@@ -123,12 +123,16 @@ pub struct TrainArgs {
     #[arg(long)]
     pub warmup_steps: Option<u64>,
     /// Stiffness scale of the training gradient filter `D (D + βK)⁻¹`, 0..=100 (0: off;
-    /// default 0.01; see docs/TRAINING.md)
+    /// default 0.01, or the run's own value with --resume; see docs/TRAINING.md)
     #[arg(long)]
     pub precondition: Option<f64>,
     /// Filter the moving windows' gradient only (still windows keep the plain gradient)
     #[arg(long)]
     pub precondition_moving_only: bool,
+    /// Final stiffness scale of the gradient filter: with --steps, β moves geometrically from
+    /// --precondition to it over the run (default: constant)
+    #[arg(long)]
+    pub precondition_final: Option<f64>,
     /// Only still windows train the static encoder (moving windows see its code detached;
     /// default: every window trains it; see docs/TRAINING.md).
     #[arg(long)]
@@ -211,8 +215,11 @@ fn resumed_scene(
         ..args.scene_args()
     };
     if args.scene.is_some() || scene_args.edits_scene() {
-        let recorded = resume::recorded_config(&run)?;
-        let (given, _) = scene_config_from_args(&scene_args)?;
+        // The rate is checked above: compare the rest of the scene at the run's rate.
+        let mut recorded = resume::recorded_config(&run)?;
+        recorded.training_fps = meta.training_fps;
+        let (mut given, _) = scene_config_from_args(&scene_args)?;
+        given.training_fps = meta.training_fps;
         if let Some(difference) = resume::scene_difference(&recorded, &given)? {
             bail!(
                 "the given scene differs from the one the run was trained on ({difference}); \
@@ -311,6 +318,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if args.precondition_moving_only {
         train.precondition_moving_only = true;
+    }
+    if let Some(b) = args.precondition_final {
+        train.precondition_final_stiffness = Some(b);
     }
     if let Some(f) = args.lr_final_factor {
         train.lr_final_factor = f;

@@ -100,6 +100,43 @@ fn resume_trains_on_the_recorded_scene_and_refuses_a_different_one() {
     assert!(snapshot(&run) == before, "the run changed");
 }
 
+/// Review of issue 14: a run trained at another rate resumes with the command line that
+/// started it (`--scene` and `--fps` repeated).
+#[test]
+fn a_run_at_another_rate_resumes_with_its_own_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("tiny.toml"), super::TINY).unwrap();
+    let start = [
+        "train",
+        "--scene",
+        "tiny.toml",
+        "--fps",
+        "60",
+        "--predrape-secs",
+        "0",
+        "--steps",
+        "2",
+        "--out",
+        "run60",
+    ];
+    let (ok, log) = cli(&start, dir.path());
+    assert!(ok, "{log}");
+    let mut again = start.to_vec();
+    let n = again.len();
+    again[n - 2..].copy_from_slice(&["--resume", "run60"]);
+    again[n - 3] = "3";
+    let (ok, log) = cli(&again, dir.path());
+    assert!(ok && log.contains("(from step 2)"), "{log}");
+    let (ok, log) = cli(
+        &["train", "--resume", "run60", "--fps", "30", "--steps", "4"],
+        dir.path(),
+    );
+    assert!(
+        !ok && log.contains("trained at 60 frames per second"),
+        "{log}"
+    );
+}
+
 #[test]
 fn a_new_run_into_a_folder_holding_a_run_is_refused() {
     let dir = tempfile::tempdir().unwrap();

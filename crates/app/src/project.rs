@@ -18,8 +18,8 @@ use super::metrics::XAxis;
 /// Current project format version (2: the scene is a [`SceneConfig`]; 1: scene sources,
 /// fabric and effects apart, still read). Version-2 files written before issue 14 also carry
 /// `training.fps` (equal to `scene.training_fps`): read and dropped (`take_training_fps`);
-/// files without it stay version 2, since earlier builds read them as they are (they took
-/// the rate from the scene too).
+/// files without it stay version 2: earlier builds took the rate from the scene too, but
+/// refuse any training setting they do not know (e.g. `precondition_stiffness`, round 7).
 pub const PROJECT_VERSION: u32 = 2;
 /// Extension offered for project files.
 pub const PROJECT_EXTENSION: &str = "toml";

@@ -21,9 +21,12 @@ impl NeuralClothApp {
                 }
                 ui.add_enabled(
                     !state.is_active(),
-                    egui::Slider::new(&mut self.state.scene.config.training_fps, 5.0..=120.0)
-                        .integer()
-                        .text("fps"),
+                    egui::Slider::new(
+                        &mut self.state.scene.config.training_fps,
+                        neural_cloth_train::config::TRAINING_FPS_RANGE,
+                    )
+                    .integer()
+                    .text("fps"),
                 );
                 ui.add_enabled(
                     !state.is_active(),

@@ -8,6 +8,7 @@
 //!   batches and returns per-term scalars ([`LossTerms`]). Training, evaluation and the
 //!   simulator all go through it.
 //! - [`collision`]: posed bodies, the batched nearest-vertex query, the collision energy.
+//! - [`precondition`]: the training's gradient filter `D (D + βK)⁻¹` ([`GradientFilter`]).
 //! - [`metrics`]: strain, bending, collision %, gravity and inertia of any mesh sequence.
 //! - [`simulator`]: frame-by-frame minimisation of `½(x - x̃)ᵀM(x - x̃) + Δt² E(x)` with
 //!   L-BFGS ([`lbfgs`]) whose initial metric is a prefactored `M/Δt² + K` ([`sparse`]);

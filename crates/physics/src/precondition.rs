@@ -21,6 +21,8 @@ pub struct GradientFilter {
     factor: EnvelopeCholesky,
     /// `m_v / Δt²` per vertex, in N/m.
     inertial: Vec<f64>,
+    /// β.
+    stiffness_scale: f64,
 }
 
 impl GradientFilter {
@@ -42,22 +44,31 @@ impl GradientFilter {
             )));
         }
         let dt2 = f64::from(dt_secs).powi(2);
-        let inertial: Vec<f64> = rest.mass_kg.iter().map(|m| m / dt2).collect();
-        let mean = inertial.iter().sum::<f64>() / inertial.len().max(1) as f64;
+        let mean = rest.mass_kg.iter().sum::<f64>() / dt2 / rest.mass_kg.len().max(1) as f64;
+        // A vertex without mass (in no triangle, or only in degenerate ones) gets a small
+        // positive diagonal, used on both sides so that its gradient is kept, not zeroed.
+        let inertial: Vec<f64> = rest
+            .mass_kg
+            .iter()
+            .map(|m| (m / dt2).max(1e-6 * mean + 1e-12))
+            .collect();
         let mut triplets: Vec<(usize, usize, f64)> = rest
             .membrane_stiffness_triplets(fabric)
             .into_iter()
             .map(|(i, j, k)| (i, j, stiffness_scale * k))
             .collect();
-        // A vertex without mass still gets a positive diagonal.
-        triplets.extend(
-            inertial
-                .iter()
-                .enumerate()
-                .map(|(v, d)| (v, v, d + 1e-9 * mean + 1e-12)),
-        );
+        triplets.extend(inertial.iter().enumerate().map(|(v, d)| (v, v, *d)));
         let factor = EnvelopeCholesky::factor(rest.vertex_count(), &triplets)?;
-        Ok(Self { factor, inertial })
+        Ok(Self {
+            factor,
+            inertial,
+            stiffness_scale,
+        })
+    }
+
+    /// The stiffness scale β it was factored with.
+    pub fn stiffness_scale(&self) -> f64 {
+        self.stiffness_scale
     }
 
     /// Vertices of the garment the filter was built for.
@@ -152,9 +163,17 @@ mod tests {
         f.apply(&mut g).unwrap();
         let norm = g.iter().map(|x| x * x).sum::<f32>().sqrt() / (n as f32).sqrt();
         assert!(norm < 0.2, "rough mode kept {norm} of its size");
-        let mut two = vec![1.0f32; 2 * n * 3];
-        f.apply_from(&mut two, 1).unwrap();
-        assert!(two[..n * 3].iter().all(|x| *x == 1.0) && two[n * 3..].iter().any(|x| *x != 1.0));
+        // Rows before `first` keep the plain gradient; the rest equal the filtered rows.
+        let rows: Vec<f32> = (0..3 * n * 3)
+            .map(|i| ((i * 31) % 17) as f32 - 8.0)
+            .collect();
+        let mut part = rows.clone();
+        f.apply_from(&mut part, 1).unwrap();
+        let mut whole = rows.clone();
+        f.apply(&mut whole).unwrap();
+        assert_eq!(part[..n * 3], rows[..n * 3]);
+        assert_eq!(part[n * 3..], whole[n * 3..]);
+        assert_ne!(part[n * 3..], rows[n * 3..]);
         let mut zero = vec![0.0f32; 2 * n * 3];
         f.apply(&mut zero).unwrap();
         assert!(zero.iter().all(|x| *x == 0.0));

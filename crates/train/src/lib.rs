@@ -18,6 +18,7 @@ pub mod compare;
 pub mod config;
 pub mod data;
 pub mod eval;
+pub mod filter;
 pub mod handle;
 pub mod losses;
 pub mod metrics;
@@ -81,6 +82,19 @@ pub enum TrainError {
     /// A checkpoint or run directory is unusable.
     #[error("checkpoint: {0}")]
     Checkpoint(String),
+    /// A resumed run would go on at another training rate than it was trained at.
+    #[error(
+        "the run was trained at {run_fps} frames per second, the scene is at {scene_fps}; a run goes on at its own rate: {}",
+        path.display()
+    )]
+    RateChanged {
+        /// The rate the run recorded, frames per second.
+        run_fps: f32,
+        /// The rate of the scene given, frames per second.
+        scene_fps: f32,
+        /// The run folder.
+        path: PathBuf,
+    },
     /// A file of a run folder is damaged, truncated or unreadable.
     #[error("{reason}: {}", path.display())]
     Corrupt {
@@ -292,7 +306,12 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
             avatar_fingerprint: Some(avatar_fingerprint(&avatar)),
             garment_skin_fingerprint: Some(garment_skin_fingerprint(&garment)),
         };
-        write_meta(&run, &meta, &scene_config)?;
+        // scene.toml records the rate the run trains at, the scene's (one fact, one home).
+        let recorded = SceneConfig {
+            training_fps: fps,
+            ..scene_config.clone()
+        };
+        write_meta(&run, &meta, &recorded)?;
     }
     let run_root = run.root.clone();
     let mut session = NeuralSession::new(SessionParts {
@@ -465,13 +484,11 @@ fn open_for_resume(dir: &Path, scene: &Scene) -> Result<(RunDir, RunMeta), Train
     let run = RunDir::open(dir)?;
     let meta = run.meta()?;
     if meta.training_fps != scene.training_fps {
-        return Err(TrainError::Checkpoint(format!(
-            "the run was trained at {} frames per second, the scene is at {}; a run goes on at \
-             its own rate: {}",
-            meta.training_fps,
-            scene.training_fps,
-            run.root.display()
-        )));
+        return Err(TrainError::RateChanged {
+            run_fps: meta.training_fps,
+            scene_fps: scene.training_fps,
+            path: run.root.clone(),
+        });
     }
     let garment = &scene.garment;
     if meta.garment_fingerprint != garment_fingerprint(garment)

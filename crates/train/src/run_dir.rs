@@ -174,7 +174,9 @@ pub fn avatar_fingerprint(avatar: &Avatar) -> u64 {
 
 /// A `run.json` of version 1 in the layout of version 2: its training rate moves from
 /// `train.fps` (the old `TrainConfig` field; 30, its default, when left out) to
-/// `training_fps`. Other versions and values are returned unchanged.
+/// `training_fps`, and a run from before the gradient filter (no
+/// `train.precondition_stiffness`) keeps it off (0). Other versions and values are returned
+/// unchanged.
 fn upgrade_v1(mut meta: serde_json::Value) -> serde_json::Value {
     let Some(map) = meta.as_object_mut() else {
         return meta;
@@ -186,11 +188,19 @@ fn upgrade_v1(mut meta: serde_json::Value) -> serde_json::Value {
     {
         return meta;
     }
-    let fps = map
+    let train = map
         .get_mut("train")
-        .and_then(serde_json::Value::as_object_mut)
-        .and_then(|train| train.remove("fps"))
-        .unwrap_or_else(|| DEFAULT_TRAINING_FPS.into());
+        .and_then(serde_json::Value::as_object_mut);
+    let fps = match train {
+        Some(train) => {
+            train
+                .entry("precondition_stiffness")
+                .or_insert(serde_json::Value::from(0.0));
+            train.remove("fps")
+        }
+        None => None,
+    }
+    .unwrap_or_else(|| DEFAULT_TRAINING_FPS.into());
     map.entry("training_fps").or_insert(fps);
     meta
 }
@@ -363,6 +373,13 @@ mod tests {
         assert_eq!((read.version, read.training_fps), (1, 60.0));
         assert_eq!(read.train, TrainConfig::default());
         assert_eq!(read.garment_name, "shirt");
+        // A version-1 file from before the gradient filter keeps it off.
+        old["train"]
+            .as_object_mut()
+            .unwrap()
+            .remove("precondition_stiffness");
+        let read = run_with(dir.path(), &old).meta().unwrap();
+        assert_eq!(read.train.precondition_stiffness, 0.0);
         // A version-1 file that left the rate out had the old default.
         old["train"].as_object_mut().unwrap().remove("fps");
         let read = run_with(dir.path(), &old).meta().unwrap();

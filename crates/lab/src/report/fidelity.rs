@@ -183,7 +183,7 @@ pub fn fidelity_scene(
         ],
         effects: Effects::default(),
         fabric: FabricParams::default(),
-        training_fps: 30.0,
+        training_fps: neural_cloth_core::scene::config::DEFAULT_TRAINING_FPS,
     };
     Ok((build_builtin(&config)?, config))
 }

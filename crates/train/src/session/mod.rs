@@ -8,30 +8,33 @@
 //! frames (or, in `snug` mode, with gradients into the past frames); motion augmentation
 //! replaces the dynamic code of a fraction of the batch by another sample's (encoders
 //! detached, static losses only); with the friction effect, the friction dissipation of each
-//! loss frame's slip over the body since the network's own previous frame; Adam.
+//! loss frame's slip over the body since the network's own previous frame; the physics
+//! gradient filtered ([`crate::filter`], `D (D + βK)⁻¹`) on its way to the network; Adam.
 
 use std::path::PathBuf;
 use std::sync::Arc;
 
 use burn::module::Module;
 use burn::optim::GradientsParams;
-use burn::tensor::{Bytes, Device, Int, Tensor, TensorData};
+use burn::tensor::{Bytes, Device, Tensor, TensorData};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use rand::seq::SliceRandom;
 
 use neural_cloth_core::scene::{Avatar, Garment};
 use neural_cloth_model::activity::{Activity, revive_dead_units, unit_activity};
 use neural_cloth_model::{ClothNet, DescriptorConfig, GarmentLbs, InferenceWeights, ModelArtifact};
 use neural_cloth_physics::metrics::History;
 use neural_cloth_physics::{
-    BodyBatch, ClothMetrics, Contacts, FabricParams, GradientFilter, LossTerms, PhysicsTerms,
+    BodyBatch, ClothMetrics, Contacts, FabricParams, FrictionContacts, LossTerms, PhysicsTerms,
 };
+
+mod forward;
 
 use super::TrainError;
 use super::adam::TrainOptimiser;
 use super::config::{InertiaMode, TrainConfig};
 use super::data::{Batch, Dataset};
+use super::filter::{FilterCache, filtered_surrogate};
 use super::handle::Session;
 use super::metrics::{MetricHistory, MetricRecord};
 use super::run_dir::{CheckpointState, RunDir};
@@ -65,9 +68,8 @@ pub struct NeuralSession {
     activity: Option<Activity>,
     /// Standard deviation of fresh weights when dead units are revived.
     init_std: f64,
-    /// The gradient filter of [`TrainConfig::precondition_stiffness`], built on first use
-    /// (and again after a fabric change).
-    filter: Option<Arc<GradientFilter>>,
+    /// The gradient filter of [`TrainConfig::precondition_stiffness`].
+    filter: FilterCache,
 }
 
 /// The parts a session is built from.
@@ -125,25 +127,8 @@ impl NeuralSession {
             run: parts.run,
             activity: None,
             init_std: parts.init_std,
-            filter: None,
+            filter: FilterCache::default(),
         }
-    }
-
-    /// The gradient filter, when the settings ask for one.
-    fn gradient_filter(&mut self) -> Result<Option<Arc<GradientFilter>>, TrainError> {
-        let beta = self.config.precondition_stiffness;
-        if beta <= 0.0 {
-            return Ok(None);
-        }
-        if self.filter.is_none() {
-            self.filter = Some(Arc::new(GradientFilter::new(
-                self.terms.rest(),
-                self.terms.fabric(),
-                self.dt_secs(),
-                beta,
-            )?));
-        }
-        Ok(self.filter.clone())
     }
 
     /// Restores model, optimiser and learning rate from checkpoint `step`.
@@ -161,6 +146,7 @@ impl NeuralSession {
             .load_bytes(Bytes::from_bytes_vec(optim_bytes))
             .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
         self.learning_rate = state.learning_rate;
+        self.filter.restore(state.step);
         Ok(state)
     }
 
@@ -191,92 +177,6 @@ impl NeuralSession {
         Tensor::from_data(TensorData::new(data, shape), &self.device)
     }
 
-    /// Pinning targets of the predicted frames `first..K` of `batch`, stacked frame by frame
-    /// (`[(K - first)·B, V, 3]`, the order of [`stack_frames`]): the skinned template, where
-    /// the reference simulator holds pinned vertices too. `None` when nothing is pinned or the
-    /// scene's pinning effect is off.
-    fn pin_target(&self, batch: &Batch, blended: &Tensor<4>, first: usize) -> Option<Tensor<3>> {
-        self.terms.tensors().pinned.as_ref()?;
-        let (b, v, k) = (batch.size, self.garment.vertex_count(), batch.predicted);
-        let frames = k.saturating_sub(first);
-        let blended = blended
-            .clone()
-            .narrow(1, first, frames)
-            .swap_dims(0, 1)
-            .reshape([frames * b, 1, v, 12]);
-        let template = self
-            .lbs
-            .rest(Tensor::zeros([frames * b, 1, v, 3], &self.device));
-        Some(super::losses::skin_blended(template, blended).reshape([frames * b, v, 3]))
-    }
-
-    /// `(z_s + z_d, z_d)`, except for the last `augment` samples: their own static code
-    /// (detached) plus a shuffled sample's dynamic code (detached), the paper's motion
-    /// augmentation. The second code feeds the dynamic basis, when the network has one.
-    fn mix_codes(
-        &mut self,
-        z_s: Tensor<3>,
-        z_d: Tensor<3>,
-        augment: usize,
-    ) -> (Tensor<3>, Tensor<3>) {
-        if augment == 0 {
-            return (z_s + z_d.clone(), z_d);
-        }
-        let b = z_s.dims()[0];
-        let kept = b - augment;
-        let mut perm: Vec<i64> = (0..b as i64).collect();
-        perm.shuffle(&mut self.rng);
-        let picks = Tensor::<1, Int>::from_data(
-            TensorData::new(perm[..augment].to_vec(), [augment]),
-            &self.device,
-        );
-        let shuffled_d = z_d.clone().select(0, picks).detach();
-        let mixed_d = Tensor::cat(vec![z_d.narrow(0, 0, kept), shuffled_d], 0);
-        let z_s = Tensor::cat(
-            vec![
-                z_s.clone().narrow(0, 0, kept),
-                z_s.narrow(0, kept, augment).detach(),
-            ],
-            0,
-        );
-        (z_s + mixed_d.clone(), mixed_d)
-    }
-
-    /// Posed garment `[B, K, V, 3]` of the last `K = batch.predicted` frames of `batch` whose
-    /// first `still` windows are still, with `augment` samples (the last ones) given another
-    /// sample's dynamic code and detached encoders.
-    /// Also returns the batch's blended skinning matrices as a tensor (`[B, K, V, 12]`), for
-    /// the pinning targets.
-    fn predict(&mut self, batch: &Batch, still: usize, augment: usize) -> (Tensor<4>, Tensor<4>) {
-        let (b, t, k) = (batch.size, batch.frames, batch.predicted);
-        let j = self.train.input_joints;
-        let statics = self.tensor4(batch.static_desc.clone(), [b, t, j, 9]);
-        let dynamics = (self.model.kind() != neural_cloth_model::EncoderKind::StaticOnly)
-            .then(|| self.tensor4(batch.dynamic_desc.clone(), [b, t, j, 12]));
-        let split_static = self.config.static_from_still && still > 0 && still < b;
-        let offsets = if (augment == 0 && !split_static) || !self.model.has_dynamic_branch() {
-            self.model.forward_last(statics, dynamics, 1.0, k)
-        } else {
-            let (z_s, z_d) = self.model.encode_last(statics, dynamics, k);
-            match z_d {
-                Some(z_d) => {
-                    let z_s = if split_static {
-                        detach_from(z_s, still)
-                    } else {
-                        z_s
-                    };
-                    let (z, z_d) = self.mix_codes(z_s, z_d, augment);
-                    self.model.decode_with(z, Some(z_d))
-                }
-                None => self.model.decode(z_s),
-            }
-        };
-        let v = self.garment.vertex_count();
-        let blended = self.tensor4(batch.blended.clone(), [b, k, v, 12]);
-        let x = super::losses::skin_blended(self.lbs.rest(offsets), blended.clone());
-        (x, blended)
-    }
-
     /// Body contacts (when collision is on) and static losses of `x_t`, the predicted frames
     /// `first..K` of `batch` stacked frame by frame ([`stack_frames`]).
     fn static_losses(
@@ -300,6 +200,87 @@ impl NeuralSession {
             losses.push(neural_cloth_physics::Term::Pinning, pinning);
         }
         Ok((contacts, losses))
+    }
+
+    /// With the dynamics effect: the inertia of the first `kept` samples of every loss frame
+    /// of `x` (`[B, K, V, 3]`) from the network's own two previous frames, plus the friction
+    /// dissipation of every loss frame `x_t` (stacked, [`stack_frames`]) with the friction
+    /// effect, in that order; and the friction contacts, for the step's metrics.
+    fn dynamic_losses(
+        &self,
+        x: &Tensor<4>,
+        x_t: &Tensor<3>,
+        batch: &Batch,
+        contacts: Option<&Contacts>,
+        kept: usize,
+    ) -> Result<(Vec<Tensor<1>>, Option<FrictionContacts>), TrainError> {
+        if !self.terms.effects().dynamics {
+            return Ok((Vec::new(), None));
+        }
+        let (b, predicted) = (batch.size, batch.predicted);
+        let (xt, xt1, xt2) = (
+            stack_frames(x, 2, predicted, kept),
+            stack_frames(x, 1, predicted - 1, kept),
+            stack_frames(x, 0, predicted - 2, kept),
+        );
+        let inertia = match self.config.inertia_mode {
+            InertiaMode::Ours => self.terms.inertia(&xt, &xt1, &xt2, self.dt_secs()),
+            InertiaMode::Snug => {
+                super::losses::inertia_through_past(&self.terms, &xt, &xt1, &xt2, self.dt_secs())
+            }
+        };
+        let friction = match (contacts, self.terms.friction_on()) {
+            (Some(c), true) => super::losses::friction_contacts(
+                &self.terms,
+                &self.train,
+                &self.avatar,
+                batch,
+                c,
+                kept,
+            )?,
+            _ => None,
+        };
+        let dissipation = friction.as_ref().and_then(|fc| {
+            let xt1 = stack_frames(x, 1, predicted - 1, b);
+            self.terms.friction(x_t, &xt1, fc)
+        });
+        Ok((inertia.into_iter().chain(dissipation).collect(), friction))
+    }
+
+    /// Metrics of a training step on its first few windows only ([`STEP_METRIC_WINDOWS`]):
+    /// they are a noisy monitor anyway, and the full batch would cost a sizeable share of the
+    /// step (validation uses every window). `x` is `[B, K, V, 3]`; `contacts` and `friction`
+    /// are stacked over the loss frames.
+    fn step_metrics(
+        &self,
+        x: &Tensor<4>,
+        contacts: Option<Contacts>,
+        friction: Option<FrictionContacts>,
+        b: usize,
+        predicted: usize,
+    ) -> Result<ClothMetrics, TrainError> {
+        let n = b.min(STEP_METRIC_WINDOWS);
+        let head = |t: Tensor<3>| t.detach().narrow(0, 0, n);
+        let history = History {
+            x_t1: head(frame(x, predicted - 2)),
+            x_t2: head(frame(x, predicted - 3)),
+            dt_secs: self.dt_secs(),
+            friction: friction.map(|fc| fc.narrow((predicted - 3) * b, n)),
+        };
+        // The last frame's block of the stacked contacts.
+        let last = (predicted - 3) * b;
+        let v = self.garment.vertex_count();
+        let contacts = contacts.map(|c| Contacts {
+            points: c.points.narrow(0, last, n),
+            normals: c.normals.narrow(0, last, n),
+            distances_m: c.distances_m[last * v..(last + n) * v].to_vec(),
+            indices: c.indices[last * v..(last + n) * v].to_vec(),
+        });
+        Ok(self.terms.metrics(
+            &head(frame(x, predicted - 1)),
+            contacts.as_ref(),
+            Some(&history),
+        )?)
     }
 
     /// Posed bodies of the predicted frames `first..K` of `batch`, stacked frame by frame.
@@ -361,40 +342,6 @@ impl NeuralSession {
     }
 }
 
-/// `z` with rows `from..` detached (their gradient stops here).
-fn detach_from(z: Tensor<3>, from: usize) -> Tensor<3> {
-    let b = z.dims()[0];
-    if from >= b {
-        return z;
-    }
-    let tail = z.clone().narrow(0, from, b - from).detach();
-    Tensor::cat(vec![z.narrow(0, 0, from), tail], 0)
-}
-
-/// `Σ x_net · sg(F(∂total/∂x))`, F the gradient filter: its gradient with respect to the
-/// network's output `x_net` is the filtered physics gradient (the first `plain_rows` rows of
-/// `[B·K, V, 3]` keep the plain one). `x` is the detached leaf copy of `x_net` that `total` was
-/// computed from.
-fn filtered_surrogate(
-    filter: &GradientFilter,
-    x_net: &Tensor<4>,
-    x: &Tensor<4>,
-    total: Tensor<1>,
-    plain_rows: usize,
-) -> Result<Tensor<1>, TrainError> {
-    let dims = x.dims();
-    let grads = total.backward();
-    let mut g = match x.grad(&grads) {
-        Some(g) => g
-            .try_into_vec_as::<f32>()
-            .map_err(|e| neural_cloth_physics::PhysicsError::Backend(e.to_string()))?,
-        None => vec![0.0; dims.iter().product()],
-    };
-    filter.apply_from(&mut g, plain_rows)?;
-    let g = Tensor::<4>::from_data(TensorData::new(g, dims), &x_net.device());
-    Ok((x_net.clone() * g).sum())
-}
-
 /// `x[:, k]` as `[B, V, 3]`.
 fn frame(x: &Tensor<4>, k: usize) -> Tensor<3> {
     let [b, _, v, c] = x.dims();
@@ -435,7 +382,9 @@ impl Session for NeuralSession {
         let (x_net, blended) = self.predict(&batch, still, augment);
         // With the gradient filter, the losses are taken on a detached copy of the posed
         // frames; their gradient is filtered and handed to the network through a surrogate.
-        let filter = self.gradient_filter()?;
+        let filter = self
+            .filter
+            .next(&self.config, &self.terms, self.dt_secs())?;
         let x = match filter {
             Some(_) => x_net.clone().detach().require_grad(),
             None => x_net.clone(),
@@ -447,43 +396,10 @@ impl Session for NeuralSession {
         let mut total = losses
             .total()
             .unwrap_or_else(|| Tensor::zeros([1], &self.device));
-        let mut friction = None;
-        if self.terms.effects().dynamics {
-            let kept = b - augment;
-            let (xt, xt1, xt2) = (
-                stack_frames(&x, 2, predicted, kept),
-                stack_frames(&x, 1, predicted - 1, kept),
-                stack_frames(&x, 0, predicted - 2, kept),
-            );
-            let inertia = match self.config.inertia_mode {
-                InertiaMode::Ours => self.terms.inertia(&xt, &xt1, &xt2, self.dt_secs()),
-                InertiaMode::Snug => super::losses::inertia_through_past(
-                    &self.terms,
-                    &xt,
-                    &xt1,
-                    &xt2,
-                    self.dt_secs(),
-                ),
-            };
-            if let Some(inertia) = inertia {
-                total = total + inertia;
-            }
-            if let (Some(c), true) = (&contacts, self.terms.friction_on()) {
-                friction = super::losses::friction_contacts(
-                    &self.terms,
-                    &self.train,
-                    &self.avatar,
-                    &batch,
-                    c,
-                    kept,
-                )?;
-            }
-            if let Some(fc) = &friction {
-                let xt1 = stack_frames(&x, 1, predicted - 1, b);
-                if let Some(d) = self.terms.friction(&x_t, &xt1, fc) {
-                    total = total + d;
-                }
-            }
+        let (dynamic, friction) =
+            self.dynamic_losses(&x, &x_t, &batch, contacts.as_ref(), b - augment)?;
+        for term in dynamic {
+            total = total + term;
         }
         let loss = total.clone().into_scalar::<f64>();
         let grads = match filter {
@@ -504,30 +420,8 @@ impl Session for NeuralSession {
             &mut self.model,
             grads,
         )?;
-        // Per-step metrics on the first few windows only: they are a noisy monitor anyway, and
-        // the full batch would cost a sizeable share of the step (validation uses every window).
-        let n = b.min(STEP_METRIC_WINDOWS);
-        let head = |t: Tensor<3>| t.detach().narrow(0, 0, n);
-        let history = History {
-            x_t1: head(frame(&x, predicted - 2)),
-            x_t2: head(frame(&x, predicted - 3)),
-            dt_secs: self.dt_secs(),
-            friction: friction.map(|fc| fc.narrow((predicted - 3) * b, n)),
-        };
-        // The last frame's block of the stacked contacts.
-        let last = (predicted - 3) * b;
-        let v = self.garment.vertex_count();
-        let contacts = contacts.map(|c| neural_cloth_physics::Contacts {
-            points: c.points.narrow(0, last, n),
-            normals: c.normals.narrow(0, last, n),
-            distances_m: c.distances_m[last * v..(last + n) * v].to_vec(),
-            indices: c.indices[last * v..(last + n) * v].to_vec(),
-        });
-        let metrics = self.terms.metrics(
-            &head(frame(&x, predicted - 1)),
-            contacts.as_ref(),
-            Some(&history),
-        )?;
+        self.filter.count_step();
+        let metrics = self.step_metrics(&x, contacts, friction, b, predicted)?;
         Ok(self.record(&metrics, loss))
     }
 
@@ -658,7 +552,7 @@ impl Session for NeuralSession {
         let effects = *self.terms.effects();
         self.terms = PhysicsTerms::new(&self.garment, &fabric, &effects, &self.device)?
             .with_fused(self.config.fused_physics);
-        self.filter = None;
+        self.filter.reset();
         Ok(())
     }
 
