@@ -96,7 +96,9 @@ fn run_to_end(
     let mut events = Vec::new();
     loop {
         match handle.recv_timeout(Duration::from_secs(120)) {
-            Some(TrainEvent::Finished(result)) => return (events, result),
+            Some(TrainEvent::Finished(result)) => {
+                return (events, result.map_err(|e| e.to_string()));
+            }
             Some(e) => events.push(e),
             None => panic!("trainer went silent; events so far: {}", events.len()),
         }

@@ -417,7 +417,8 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
             | TrainEvent::Stalled { .. }
             | TrainEvent::Paused
             | TrainEvent::Resumed
-            | TrainEvent::Applied(_) => {}
+            | TrainEvent::Applied(_)
+            | TrainEvent::Rejected { .. } => {}
         }
     }
     // The last sample, before the trainer's thread is joined.

@@ -438,10 +438,11 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
             | TrainEvent::Snapshot { .. }
             | TrainEvent::Paused
             | TrainEvent::Resumed
-            | TrainEvent::Applied(_) => {}
+            | TrainEvent::Applied(_)
+            | TrainEvent::Rejected { .. } => {}
             TrainEvent::Finished(result) => {
                 bar.finish_and_clear();
-                let summary = result.map_err(|e| anyhow::anyhow!(e))?;
+                let summary = result.map_err(|e| anyhow::anyhow!(e.to_string()))?;
                 println!("{}", serde_json::to_string_pretty(&summary)?);
                 break;
             }

@@ -7,7 +7,7 @@ use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use neural_cloth::app::NeuralClothApp;
 use neural_cloth::app::metrics::MetricRecord;
-use neural_cloth::train::handle::TrainEvent;
+use neural_cloth::train::handle::{LiveSetting, TrainEvent};
 
 use super::{options, snapshot_options};
 
@@ -37,7 +37,7 @@ fn feed_run(app: &mut NeuralClothApp) {
         };
         training.apply(TrainEvent::Step(record));
         if step == 150 {
-            training.apply(TrainEvent::Applied("fabric".into()));
+            training.apply(TrainEvent::Applied(LiveSetting::Fabric));
         }
         if step % 25 == 0 {
             training.apply(TrainEvent::Validation(MetricRecord {
@@ -70,10 +70,10 @@ fn curves_show_the_trend_and_where_a_setting_changed() {
     h.snapshot_options("metric_curves_readable", &snapshot_options());
 
     // A rejected change leaves no marker; a rollback marks the new learning rate.
-    h.state_mut()
-        .state
-        .training
-        .apply(TrainEvent::Applied("window rejected: too long".into()));
+    h.state_mut().state.training.apply(TrainEvent::Rejected {
+        setting: LiveSetting::Window { secs: 9.0 },
+        error: std::sync::Arc::new(neural_cloth::train::TrainError::Data("too long".into())),
+    });
     h.state_mut().state.training.apply(TrainEvent::RolledBack {
         diverged_at: 390,
         restored_step: 300,

@@ -153,13 +153,6 @@ pub fn push_marker(markers: &mut Vec<SettingMarker>, marker: SettingMarker) {
     markers.push(marker);
 }
 
-/// The marker name for a trainer's `TrainEvent::Applied` text, or None when the change was
-/// rejected (nothing changed then).
-pub fn applied_marker_name(applied: &str) -> Option<String> {
-    let name = applied.trim();
-    (!name.is_empty() && !name.contains("rejected")).then(|| name.to_string())
-}
-
 /// One metric's curves ready to draw: raw per-step values, their smoothed line, validation
 /// points, all in plot coordinates (`log10` of the value when [`PreparedCurve::log`]).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -360,16 +353,6 @@ mod tests {
             loss_trend(&h).map(|r| r.trend),
             Some(curve_math::Trend::Improving)
         );
-    }
-
-    #[test]
-    fn rejected_changes_leave_no_marker() {
-        assert_eq!(applied_marker_name("fabric").as_deref(), Some("fabric"));
-        assert_eq!(
-            applied_marker_name("window 0.8 s").as_deref(),
-            Some("window 0.8 s")
-        );
-        assert_eq!(applied_marker_name("window rejected: too long"), None);
     }
 
     #[test]

@@ -13,7 +13,7 @@ use neural_cloth_train::TrainConfig;
 use neural_cloth_train::handle::{TrainCommand, TrainEvent, TrainerHandle};
 
 use super::error::AppError;
-use super::metrics::{MetricHistory, SettingMarker, applied_marker_name, push_marker};
+use super::metrics::{MetricHistory, SettingMarker, push_marker};
 
 /// Where the training run is.
 #[derive(Clone, Debug, PartialEq)]
@@ -347,16 +347,18 @@ impl TrainingControl {
                     self.state = TrainingState::Running;
                 }
             }
-            TrainEvent::Applied(what) => {
-                if let Some(name) = applied_marker_name(&what) {
-                    let marker = SettingMarker {
-                        step: self.progress.step,
-                        wall_secs: self.progress.elapsed_secs,
-                        name,
-                    };
-                    push_marker(&mut self.markers, marker);
-                }
-                self.note(format!("applied: {what}"));
+            TrainEvent::Applied(setting) => {
+                let marker = SettingMarker {
+                    step: self.progress.step,
+                    wall_secs: self.progress.elapsed_secs,
+                    name: setting.to_string(),
+                };
+                push_marker(&mut self.markers, marker);
+                self.note(format!("applied: {setting}"));
+            }
+            // Nothing changed: no marker.
+            TrainEvent::Rejected { setting, error } => {
+                self.note(format!("{setting} rejected: {error}"));
             }
             TrainEvent::Warning(w) => self.note(format!("⚠ {w}")),
             TrainEvent::Stalled {
@@ -367,14 +369,17 @@ impl TrainingControl {
                 "⚠ training stalled at step {step}: {reason}; {remedy}"
             )),
             TrainEvent::Finished(result) => {
-                let result = result.map(|s| {
-                    format!(
-                        "{} steps in {:.1} s, run {}",
-                        s.steps,
-                        s.wall_secs,
-                        s.run_dir.display()
-                    )
-                });
+                // Kept as text: the app shows it, nothing acts on it.
+                let result = result
+                    .map(|s| {
+                        format!(
+                            "{} steps in {:.1} s, run {}",
+                            s.steps,
+                            s.wall_secs,
+                            s.run_dir.display()
+                        )
+                    })
+                    .map_err(|e| e.to_string());
                 if let Err(e) = &result {
                     self.note(format!("training failed: {e}"));
                 }

@@ -39,6 +39,28 @@ pub enum TrainCommand {
     SetWindow(f32),
 }
 
+/// A setting changed while a run trains ([`TrainCommand::SetFabric`],
+/// [`TrainCommand::SetWindow`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LiveSetting {
+    /// New fabric parameters.
+    Fabric,
+    /// A new temporal window.
+    Window {
+        /// Window length, s.
+        secs: f32,
+    },
+}
+
+impl std::fmt::Display for LiveSetting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Fabric => write!(f, "fabric"),
+            Self::Window { secs } => write!(f, "window {secs} s"),
+        }
+    }
+}
+
 /// What the trainer reports.
 #[derive(Clone, Debug)]
 pub enum TrainEvent {
@@ -93,9 +115,16 @@ pub enum TrainEvent {
     /// Training resumed.
     Resumed,
     /// A live setting took effect.
-    Applied(String),
-    /// The run ended: a summary, or the error that stopped it.
-    Finished(Result<RunSummary, String>),
+    Applied(LiveSetting),
+    /// A live setting was refused; training goes on with the one before.
+    Rejected {
+        /// The setting asked for.
+        setting: LiveSetting,
+        /// Why it was refused (shared: events are cloned).
+        error: Arc<TrainError>,
+    },
+    /// The run ended: a summary, or the error that stopped it (shared: events are cloned).
+    Finished(Result<RunSummary, Arc<TrainError>>),
 }
 
 /// Final numbers of a run.
@@ -260,7 +289,7 @@ impl TrainerHandle {
                 // The session is dropped: give the buffers the allocator kept for the next
                 // step back to the system (the app lives on after a run).
                 super::alloc::release_freed_buffers();
-                emit.send(TrainEvent::Finished(result.map_err(|e| e.to_string())));
+                emit.send(TrainEvent::Finished(result.map_err(Arc::new)));
             })?;
         Ok(Self {
             commands: cmd_tx,
@@ -343,6 +372,17 @@ impl Emitter {
         if let Some(n) = &self.notify {
             n();
         }
+    }
+}
+
+/// The event for a live setting's outcome.
+fn live_outcome(setting: LiveSetting, result: Result<(), TrainError>) -> TrainEvent {
+    match result {
+        Ok(()) => TrainEvent::Applied(setting),
+        Err(e) => TrainEvent::Rejected {
+            setting,
+            error: Arc::new(e),
+        },
     }
 }
 
@@ -431,14 +471,13 @@ fn run_loop<S: Session>(
                     emit.send(TrainEvent::Resumed);
                 }
                 TrainCommand::Stop => break 'outer,
-                TrainCommand::SetFabric(f) => match session.set_fabric(*f) {
-                    Ok(()) => emit.send(TrainEvent::Applied("fabric".into())),
-                    Err(e) => emit.send(TrainEvent::Applied(format!("fabric rejected: {e}"))),
-                },
-                TrainCommand::SetWindow(w) => match session.set_window(w) {
-                    Ok(()) => emit.send(TrainEvent::Applied(format!("window {w} s"))),
-                    Err(e) => emit.send(TrainEvent::Applied(format!("window rejected: {e}"))),
-                },
+                TrainCommand::SetFabric(f) => {
+                    emit.send(live_outcome(LiveSetting::Fabric, session.set_fabric(*f)));
+                }
+                TrainCommand::SetWindow(secs) => {
+                    let setting = LiveSetting::Window { secs };
+                    emit.send(live_outcome(setting, session.set_window(secs)));
+                }
             }
         }
         if stop.load(Ordering::Relaxed) {

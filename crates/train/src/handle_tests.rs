@@ -116,3 +116,23 @@ fn the_learning_rate_warms_up_over_the_first_steps_of_open_and_bounded_runs() {
     assert_eq!(f[0], 0.25);
     assert!(f[9] < 1.0 && f[9] > 0.1, "{f:?}");
 }
+
+#[test]
+fn a_live_setting_is_applied_or_rejected_with_its_error() {
+    let window = LiveSetting::Window { secs: 0.8 };
+    assert!(matches!(
+        live_outcome(window, Ok(())),
+        TrainEvent::Applied(LiveSetting::Window { secs }) if secs == 0.8
+    ));
+    match live_outcome(
+        LiveSetting::Fabric,
+        Err(TrainError::Data("too stiff".into())),
+    ) {
+        TrainEvent::Rejected { setting, error } => {
+            assert_eq!(setting, LiveSetting::Fabric);
+            assert!(error.to_string().contains("too stiff"), "{error}");
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(window.to_string(), "window 0.8 s");
+}

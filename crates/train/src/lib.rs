@@ -32,7 +32,7 @@ pub mod warm_start;
 
 pub use config::{BackendKind, InertiaMode, TrainConfig};
 pub use eval::{EvalReport, evaluate};
-pub use handle::{RunSummary, TrainCommand, TrainEvent, TrainerHandle};
+pub use handle::{LiveSetting, RunSummary, TrainCommand, TrainEvent, TrainerHandle};
 pub use metrics::{MetricHistory, MetricRecord};
 pub use run_dir::{RunDir, RunMeta};
 pub use trained::{TrainedModel, load_trained};
