@@ -219,9 +219,7 @@ impl AppState {
                     return;
                 }
             };
-            // The settings it trained with, as its run.json records them.
-            config.effects = meta.effects;
-            config.fabric = meta.fabric.clone();
+            // The rate it trained at (the recorded scene holds its fabric and effects).
             config.training_fps = meta.training_fps;
             self.train_config = meta.train.clone();
             self.show_parts(SceneParts::from_scene(scene, config));

@@ -315,12 +315,7 @@ pub fn compare(
     let fps = trained.meta.training_fps;
     let device = device_for(BackendKind::Cpu, false);
     let scene = &trained.scene;
-    let terms = PhysicsTerms::new(
-        &scene.garment,
-        &trained.meta.fabric,
-        &trained.meta.effects,
-        &device,
-    )?;
+    let terms = PhysicsTerms::new(&scene.garment, &scene.fabric, &scene.effects, &device)?;
     let count = motions.len();
     let mut out = Vec::with_capacity(count);
     for (index, motion) in motions.into_iter().enumerate() {
@@ -388,7 +383,7 @@ fn compare_motion(
     options: &CompareOptions,
     say: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
 ) -> Result<MotionComparison, TrainError> {
-    let (scene, meta) = (&trained.scene, &trained.meta);
+    let scene = &trained.scene;
     let fps = motion.fps;
     let reference = reference_for(trained, motion, options, say)?;
     let (network, network_static) = play_network(trained, &motion.frames, options.w, say)?;
@@ -418,7 +413,7 @@ fn compare_motion(
         },
     )?;
     let bodies = trained.bodies_of(motion)?;
-    let model = meta.fabric.cloth_model;
+    let model = scene.fabric.cloth_model;
     let mut network_metrics =
         sequence_mean_metrics(terms, &network, bodies.as_deref(), fps, model)?;
     network_metrics.step = trained.step;

@@ -40,12 +40,7 @@ pub fn evaluate(trained: &TrainedModel, split: Split, w: f32) -> Result<EvalRepo
     let scene = &trained.scene;
     let fps = trained.meta.training_fps;
     let device = device_for(BackendKind::Cpu, false);
-    let terms = PhysicsTerms::new(
-        &scene.garment,
-        &trained.meta.fabric,
-        &trained.meta.effects,
-        &device,
-    )?;
+    let terms = PhysicsTerms::new(&scene.garment, &scene.fabric, &scene.effects, &device)?;
     let mut motions = Vec::new();
     let mut all = Vec::new();
     for motion in scene.motions_in(split) {
@@ -62,7 +57,7 @@ pub fn evaluate(trained: &TrainedModel, split: Split, w: f32) -> Result<EvalRepo
         let per_frame = sequence_metrics(&terms, &frames, bodies.as_deref(), 1.0 / fps)?;
         let records: Vec<MetricRecord> = per_frame
             .iter()
-            .map(|m| MetricRecord::from_metrics(trained.meta.fabric.cloth_model, m, 0.0))
+            .map(|m| MetricRecord::from_metrics(scene.fabric.cloth_model, m, 0.0))
             .collect();
         let mut mean = MetricRecord::mean(&records);
         // Inertia exists from the third frame on: average it over those frames only.

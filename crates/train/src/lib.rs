@@ -297,8 +297,6 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
             training_fps: fps,
             model: model.clone(),
             descriptors: descriptors.clone(),
-            fabric: fabric.clone(),
-            effects: scene.effects,
             input_joints: train_data.input_joints,
             garment_vertices: garment.vertex_count(),
             garment_fingerprint: garment_fingerprint(&garment),
@@ -306,9 +304,12 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
             avatar_fingerprint: Some(avatar_fingerprint(&avatar)),
             garment_skin_fingerprint: Some(garment_skin_fingerprint(&garment)),
         };
-        // scene.toml records the rate the run trains at, the scene's (one fact, one home).
+        // scene.toml records the rate, fabric and effects the run trains with (one fact, one
+        // home: run.json keeps no copies).
         let recorded = SceneConfig {
             training_fps: fps,
+            fabric: fabric.clone(),
+            effects: scene.effects,
             ..scene_config.clone()
         };
         write_meta(&run, &meta, &recorded)?;
@@ -363,7 +364,7 @@ fn refuse_misfit(
 }
 
 /// The model, descriptor and fabric settings of a run: for a resumed run the ones it recorded
-/// (with the run and its description), otherwise the given ones.
+/// (model and descriptors in `run.json`, the fabric in its scene), otherwise the given ones.
 struct Settings {
     resumed: Option<(RunDir, RunMeta)>,
     model: ClothNetConfig,
@@ -394,7 +395,7 @@ fn settings(
     }
     let fabric = match (fabric, &resumed) {
         (Some(f), _) => f,
-        (None, Some((_, meta))) => meta.fabric.clone(),
+        (None, Some((run, _))) => resume::recorded_config(run)?.fabric,
         (None, None) => scene.fabric.clone(),
     };
     fabric

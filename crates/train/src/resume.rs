@@ -28,13 +28,21 @@ pub fn scene_path(run: &RunDir) -> PathBuf {
     run.root.join("scene.toml")
 }
 
-/// The description of the scene `run` was trained on.
+/// The description of the scene `run` was trained on, with its fabric and effects: those of
+/// `scene.toml`, their one home, or in a run folder of format version 1 or 2 the copies its
+/// `run.json` kept ([`RunDir::legacy_settings`]: what the run trained with).
 pub fn recorded_config(run: &RunDir) -> Result<SceneConfig, TrainError> {
     let path = scene_path(run);
-    SceneConfig::from_toml_str(&run.scene_toml()?).map_err(|e| TrainError::Corrupt {
-        reason: format!("unreadable recorded scene ({e})"),
-        path,
-    })
+    let mut config =
+        SceneConfig::from_toml_str(&run.scene_toml()?).map_err(|e| TrainError::Corrupt {
+            reason: format!("unreadable recorded scene ({e})"),
+            path,
+        })?;
+    if let Some(legacy) = run.legacy_settings()? {
+        config.fabric = legacy.fabric;
+        config.effects = legacy.effects;
+    }
+    Ok(config)
 }
 
 /// Loads the scene `run` was trained on (its file paths are absolute; relative ones resolve

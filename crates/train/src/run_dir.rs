@@ -2,8 +2,9 @@
 //!
 //! ```text
 //! RUN/run.json                  RunMeta: train + model + descriptor configs, training rate,
-//!                               fabric, effects, garment, garment skin and avatar fingerprints
-//! RUN/scene.toml                the scene description (file paths absolute)
+//!                               garment, garment skin and avatar fingerprints
+//! RUN/scene.toml                the scene description (file paths absolute): the one home of
+//!                               the run's fabric and effects
 //! RUN/metrics.json              the metric history up to the newest checkpoint
 //! RUN/latest.json               {"step": N} of the newest complete checkpoint
 //! RUN/checkpoints/step-0000N/   model.bpk (burn record), optimizer.bpk, state.json
@@ -35,9 +36,17 @@ pub const KEEP_CHECKPOINTS: usize = 3;
 ///   home is the scene; `TrainConfig` has none). Version-1 files are converted when read
 ///   ([`RunDir::meta`]); a program that reads version 1 only refuses version 2 by its number
 ///   instead of taking its missing `train.fps` for 30.
-pub const RUN_VERSION: u32 = 2;
+/// - 3: `run.json` no longer copies the fabric and effects; `scene.toml` is their one home
+///   (issue 14). Versions 1 and 2 kept copies in `run.json`: when their recorded scene is
+///   read ([`RunDir::legacy_settings`], `resume::recorded_config`) the copies replace the
+///   scene's, since they are what the run trained with.
+pub const RUN_VERSION: u32 = 3;
 
-/// Description of a run, written once at its start.
+/// The first format version whose `run.json` has no fabric and effects.
+const SCENE_HOLDS_SETTINGS: u64 = 3;
+
+/// Description of a run, written once at its start: what its recorded scene (`scene.toml`,
+/// with the fabric and effects) does not say.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RunMeta {
     /// Format version of the run directory.
@@ -53,10 +62,6 @@ pub struct RunMeta {
     pub model: ClothNetConfig,
     /// Descriptor settings.
     pub descriptors: DescriptorConfig,
-    /// Fabric used for the losses.
-    pub fabric: FabricParams,
-    /// Effects simulated.
-    pub effects: Effects,
     /// Network input joints.
     pub input_joints: usize,
     /// Garment vertices (rows of the basis).
@@ -74,6 +79,15 @@ pub struct RunMeta {
     /// rebuilds the garment with other weights; `None` in runs written before it was recorded.
     #[serde(default)]
     pub garment_skin_fingerprint: Option<u64>,
+}
+
+/// The fabric and effects a run folder of version 1 or 2 copied into its `run.json`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+pub struct LegacySettings {
+    /// Fabric used for the losses.
+    pub fabric: FabricParams,
+    /// Effects simulated.
+    pub effects: Effects,
 }
 
 /// Mutable state saved with each checkpoint.
@@ -259,16 +273,37 @@ impl RunDir {
         Ok(())
     }
 
-    /// Reads `run.json` (a version-1 file converted: [`RUN_VERSION`]); a newer version is
-    /// refused by its number.
+    /// Reads `run.json` (a version-1 file converted; the fabric and effects that versions 1
+    /// and 2 copied are left out: [`RUN_VERSION`]); a newer version is refused by its number.
     pub fn meta(&self) -> Result<RunMeta, TrainError> {
+        let value = self.meta_json()?;
+        serde_json::from_value(upgrade_v1(value)).map_err(|e| self.unreadable_meta(e))
+    }
+
+    /// The fabric and effects a `run.json` of version 1 or 2 copied beside its recorded scene
+    /// (what the run trained with); `None` from version 3 on, where `scene.toml` is their one
+    /// home, and in an older file without them.
+    pub fn legacy_settings(&self) -> Result<Option<LegacySettings>, TrainError> {
+        let value = self.meta_json()?;
+        let version = value.get("version").and_then(serde_json::Value::as_u64);
+        if version.is_some_and(|v| v >= SCENE_HOLDS_SETTINGS)
+            || value.get("fabric").is_none()
+            || value.get("effects").is_none()
+        {
+            return Ok(None);
+        }
+        serde_json::from_value(value)
+            .map(Some)
+            .map_err(|e| self.unreadable_meta(e))
+    }
+
+    /// `run.json` as JSON; a newer format version than [`RUN_VERSION`] is refused by its
+    /// number.
+    fn meta_json(&self) -> Result<serde_json::Value, TrainError> {
         let path = self.root.join("run.json");
         let bytes = std::fs::read(&path).map_err(|e| TrainError::io(e, &path))?;
-        let corrupt = |e: serde_json::Error| TrainError::Corrupt {
-            reason: format!("unreadable run description ({e})"),
-            path: path.clone(),
-        };
-        let value: serde_json::Value = serde_json::from_slice(&bytes).map_err(corrupt)?;
+        let value: serde_json::Value =
+            serde_json::from_slice(&bytes).map_err(|e| self.unreadable_meta(e))?;
         if let Some(version) = value.get("version").and_then(serde_json::Value::as_u64)
             && version > u64::from(RUN_VERSION)
         {
@@ -279,7 +314,15 @@ impl RunDir {
                 path,
             });
         }
-        serde_json::from_value(upgrade_v1(value)).map_err(corrupt)
+        Ok(value)
+    }
+
+    /// The error of a `run.json` that does not parse.
+    fn unreadable_meta(&self, e: serde_json::Error) -> TrainError {
+        TrainError::Corrupt {
+            reason: format!("unreadable run description ({e})"),
+            path: self.root.join("run.json"),
+        }
     }
 
     /// The scene description text.
@@ -327,8 +370,6 @@ mod tests {
             training_fps,
             model: ClothNetConfig::default(),
             descriptors: DescriptorConfig::default(),
-            fabric: FabricParams::default(),
-            effects: Effects::default(),
             input_joints: 3,
             garment_vertices: 4,
             garment_fingerprint: 5,
@@ -392,5 +433,83 @@ mod tests {
         new["version"] = 99.into();
         let e = run_with(dir.path(), &new).meta().unwrap_err().to_string();
         assert!(e.contains("format version 99"), "{e}");
+    }
+
+    /// A `run.json` of format version 2 as that program wrote it: fabric and effects copied
+    /// beside the recorded scene (here they differ from `scene.toml`'s, as a hand edit or an
+    /// old scene format could make them).
+    const RUN_JSON_V2: &str = r#"{
+  "version": 2,
+  "train": {},
+  "training_fps": 30.0,
+  "model": {},
+  "descriptors": {},
+  "fabric": { "cloth_model": "stvk", "stretch_stiffness": 42.0, "lame_mu": 7.5 },
+  "effects": { "gravity": true, "bending": true, "collision": false, "dynamics": true,
+               "pinning": false, "friction": false },
+  "input_joints": 24,
+  "garment_vertices": 400,
+  "garment_fingerprint": 123,
+  "garment_name": "tshirt",
+  "avatar_fingerprint": 456,
+  "garment_skin_fingerprint": 789
+}"#;
+
+    const SCENE_TOML: &str = r#"
+name = "tiny"
+training_fps = 30.0
+[avatar]
+builtin = "mannequin"
+[garment]
+builtin = "tshirt"
+resolution = 400
+[[motions]]
+builtin = "walk"
+duration_secs = 1.0
+[fabric]
+preset = "default"
+"#;
+
+    /// Issue 14: `run.json` keeps no copy of the fabric and effects (the recorded scene is
+    /// their one home); a version-2 run folder with the copies still loads, its recorded scene
+    /// taking the copies, since they are what the run trained with.
+    #[test]
+    fn an_old_run_with_fabric_and_effects_copies_loads_from_its_scene() {
+        let written = serde_json::to_value(meta(30.0)).unwrap();
+        assert!(written.get("fabric").is_none(), "{written}");
+        assert!(written.get("effects").is_none(), "{written}");
+
+        let dir = tempfile::tempdir().unwrap();
+        let run = RunDir::create(dir.path()).unwrap();
+        std::fs::write(dir.path().join("run.json"), RUN_JSON_V2).unwrap();
+        std::fs::write(dir.path().join("scene.toml"), SCENE_TOML).unwrap();
+        let read = run.meta().unwrap();
+        assert_eq!((read.version, read.training_fps), (2, 30.0));
+        assert_eq!((read.input_joints, read.garment_vertices), (24, 400));
+        assert_eq!(read.garment_skin_fingerprint, Some(789));
+        let legacy = run.legacy_settings().unwrap().unwrap();
+        assert!(!legacy.effects.collision);
+        let scene = crate::resume::recorded_config(&run).unwrap();
+        assert_eq!(
+            scene.fabric.cloth_model,
+            neural_cloth_physics::ClothModel::Stvk
+        );
+        assert_eq!(scene.fabric.stretch_stiffness, 42.0);
+        assert_eq!(scene.fabric.lame_mu, 7.5);
+        // Fields the old file left out take their defaults.
+        assert_eq!(
+            scene.fabric.density_kg_per_m2,
+            FabricParams::default().density_kg_per_m2
+        );
+        assert_eq!(scene.effects, legacy.effects);
+
+        // From version 3 on the scene is the one home: stray copies are not read.
+        let mut v3: serde_json::Value = serde_json::from_str(RUN_JSON_V2).unwrap();
+        v3["version"] = RUN_VERSION.into();
+        std::fs::write(dir.path().join("run.json"), v3.to_string()).unwrap();
+        assert_eq!(run.legacy_settings().unwrap(), None);
+        let scene = crate::resume::recorded_config(&run).unwrap();
+        assert_eq!(scene.fabric, FabricParams::default());
+        assert_eq!(scene.effects, Effects::default());
     }
 }

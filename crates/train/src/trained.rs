@@ -63,7 +63,7 @@ impl TrainedModel {
         &self,
         motion: &neural_cloth_core::scene::Motion,
     ) -> Result<Option<Vec<std::sync::Arc<neural_cloth_physics::PosedBody>>>, TrainError> {
-        if !self.meta.effects.collision {
+        if !self.scene.effects.collision {
             return Ok(None);
         }
         let bodies = motion

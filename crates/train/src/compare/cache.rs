@@ -114,7 +114,7 @@ fn key_record<'a>(
     motion: &'a Motion,
     options: &CompareOptions,
 ) -> Result<KeyRecord<'a>, TrainError> {
-    let (scene, meta) = (&trained.scene, &trained.meta);
+    let scene = &trained.scene;
     let garment = &scene.garment;
     let mut h = Fnv(0xcbf29ce484222325);
     h.eat(CACHE_VERSION.as_bytes());
@@ -139,8 +139,8 @@ fn key_record<'a>(
         list.iter().for_each(|i| h.eat(&i.to_le_bytes()));
     }
     let json = |e: serde_json::Error| TrainError::Checkpoint(e.to_string());
-    h.eat(&serde_json::to_vec(&meta.fabric).map_err(json)?);
-    h.eat(&serde_json::to_vec(&meta.effects).map_err(json)?);
+    h.eat(&serde_json::to_vec(&scene.fabric).map_err(json)?);
+    h.eat(&serde_json::to_vec(&scene.effects).map_err(json)?);
     Ok(KeyRecord {
         version: CACHE_VERSION,
         motion: &motion.name,
@@ -154,8 +154,8 @@ fn key_record<'a>(
         garment_vertices: garment.vertex_count(),
         avatar: &scene.avatar.name,
         avatar_fingerprint: avatar_fp,
-        fabric: &meta.fabric,
-        effects: meta.effects,
+        fabric: &scene.fabric,
+        effects: scene.effects,
         key: format!("{:016x}", h.0),
     })
 }
@@ -204,7 +204,7 @@ fn simulate_with(
     let result = simulate(
         &scene.avatar,
         &scene.garment,
-        &trained.meta.fabric,
+        &scene.fabric,
         effects,
         motion,
         motion.fps,
@@ -258,7 +258,7 @@ pub fn reference_for(
         });
     }
     let started = Instant::now();
-    let effects = trained.meta.effects;
+    let effects = trained.scene.effects;
     let dynamic = simulate_with(
         trained,
         motion,
