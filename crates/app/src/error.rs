@@ -34,6 +34,18 @@ pub enum AppError {
     /// The cost experiment failed.
     #[error(transparent)]
     Report(#[from] neural_cloth_lab::report::ReportError),
+    /// A trainer snapshot's weights do not fit the scene shown.
+    #[error("snapshot of step {step} does not fit the scene: {source}")]
+    Snapshot {
+        /// The snapshot's training step.
+        step: u64,
+        /// Why the engine refused it.
+        #[source]
+        source: neural_cloth_model::ModelError,
+    },
+    /// The viewport's collision points could not be queried on the posed body.
+    #[error("collision query: {0}")]
+    CollisionQuery(#[source] neural_cloth_physics::PhysicsError),
     /// A folder of the in-app file browser could not be listed.
     #[error("{source}: {}", path.display())]
     ReadFolder {

@@ -6,6 +6,9 @@
 //! egui 0.36, and egui_file 0.29 draws emoji that egui 0.37's default fonts do not have.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use super::error::AppError;
 
 /// What the browser chooses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -50,14 +53,18 @@ pub struct FileBrowser {
     pub typed: String,
     /// List every file, not only those with the wanted extensions.
     pub all_files: bool,
-    entries: Result<Vec<Entry>, String>,
+    /// The folder's entries, or why it could not be listed (shared: the browser is cloned).
+    entries: Result<Vec<Entry>, Arc<AppError>>,
     /// Why the last choice was refused.
     pub problem: Option<String>,
 }
 
 /// The entries of `folder`, folders first, each group by name; hidden entries left out.
-pub fn list_folder(folder: &Path) -> Result<Vec<Entry>, String> {
-    let read = std::fs::read_dir(folder).map_err(|e| format!("{e}: {}", folder.display()))?;
+pub fn list_folder(folder: &Path) -> Result<Vec<Entry>, AppError> {
+    let read = std::fs::read_dir(folder).map_err(|source| AppError::ReadFolder {
+        source,
+        path: folder.to_path_buf(),
+    })?;
     let mut entries: Vec<Entry> = read
         .filter_map(|e| e.ok())
         .map(|e| Entry {
@@ -96,7 +103,7 @@ impl FileBrowser {
 
     /// Shows `folder`.
     pub fn show_folder(&mut self, folder: PathBuf) {
-        self.entries = list_folder(&folder);
+        self.entries = list_folder(&folder).map_err(Arc::new);
         self.folder = folder;
         self.problem = None;
     }
@@ -237,7 +244,7 @@ impl FileBrowser {
             );
         }
         if let Err(e) = &self.entries {
-            ui.colored_label(ui.visuals().error_fg_color, e);
+            ui.colored_label(ui.visuals().error_fg_color, e.to_string());
         }
         egui::ScrollArea::vertical()
             .id_salt("file browser entries")

@@ -9,6 +9,7 @@ use neural_cloth_core::scene::{Avatar, Garment};
 use neural_cloth_physics::collision::PosedBody;
 use neural_cloth_render::{MeshFrame, SceneFrame, heat_color, vertex_values_from_edges};
 
+use super::error::AppError;
 use super::state::AppState;
 
 /// Strain shown as full red in the heat-map (10 % elongation or compression).
@@ -123,7 +124,7 @@ pub fn build_frame(state: &mut AppState) -> SceneFrame {
                         .map(|(_, p)| *p)
                         .collect();
                 }
-                Err(e) => state.preview.error = Some(format!("collision query: {e}")),
+                Err(e) => state.preview.error = Some(AppError::CollisionQuery(e)),
             }
         }
         frame.garment = Some(mesh);

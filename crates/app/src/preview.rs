@@ -58,8 +58,9 @@ pub struct Preview {
     source: Option<WeightsSource>,
     pending: Option<(u64, Arc<ModelArtifact>)>,
     fed: Option<Fed>,
-    /// Why the preview fell back to the skinned template, if it did.
-    pub error: Option<String>,
+    /// Why the preview fell back to the skinned template, if it did (shown as text by
+    /// [`Self::describe`]).
+    pub error: Option<AppError>,
     failed_for_scene: bool,
 }
 
@@ -167,7 +168,10 @@ impl Preview {
         match spawned {
             Ok(_) => self.building = Some(rx),
             Err(e) => {
-                self.error = Some(format!("cannot start the preview thread: {e}"));
+                self.error = Some(AppError::Thread {
+                    name: "neural-cloth-preview".into(),
+                    source: e,
+                });
                 self.failed_for_scene = true;
             }
         }
@@ -195,7 +199,7 @@ impl Preview {
                 self.source = Some(WeightsSource::Untrained);
             }
             Err(e) => {
-                self.error = Some(e.to_string());
+                self.error = Some(e);
                 self.failed_for_scene = true;
             }
         }
@@ -241,11 +245,7 @@ impl Preview {
                     self.source = Some(WeightsSource::Snapshot(step));
                     self.fed = None;
                 }
-                Err(e) => {
-                    self.error = Some(format!(
-                        "snapshot of step {step} does not fit the scene: {e}"
-                    ))
-                }
+                Err(source) => self.error = Some(AppError::Snapshot { step, source }),
             }
         }
         let fps = engine.fps();
@@ -278,7 +278,7 @@ impl Preview {
         for k in start..=frame {
             let pose = motion.sample(k as f32 / fps);
             if let Err(e) = engine.step(&pose, w) {
-                self.error = Some(e.to_string());
+                self.error = Some(e.into());
                 self.fed = None;
                 return None;
             }

@@ -51,10 +51,53 @@ pub enum ProjectError {
     #[error("invalid project file: {reason}: {}", path.display())]
     Parse {
         /// What is wrong.
-        reason: String,
+        #[source]
+        reason: InvalidProject,
         /// The file.
         path: PathBuf,
     },
+}
+
+/// What makes a project's content invalid (the file it came from is added by
+/// [`ProjectError::Parse`]).
+#[derive(Debug, thiserror::Error)]
+pub enum InvalidProject {
+    /// The text is not TOML, or not a project's layout.
+    #[error(transparent)]
+    Toml(#[from] toml::de::Error),
+    /// The project cannot be written as TOML.
+    #[error(transparent)]
+    Serialize(#[from] toml::ser::Error),
+    /// The recent-files list cannot be written as JSON.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    /// A format version this build does not read.
+    #[error("version {found} (this build reads versions 1 to {PROJECT_VERSION})")]
+    Version {
+        /// The `version` value as written (empty when it is not a number).
+        found: String,
+    },
+    /// The `training.fps` of an earlier file is not a number.
+    #[error("training.fps = {found} is not a number")]
+    TrainingFps {
+        /// The value as written.
+        found: String,
+    },
+    /// The scene description holds a value out of range.
+    #[error("scene: {0}")]
+    Scene(#[from] neural_cloth_core::scene::config::ConfigError),
+    /// A training setting is out of range.
+    #[error("training: {0}")]
+    Training(#[from] neural_cloth_train::config::ConfigError),
+    /// The view's dynamic weight is out of range.
+    #[error("view.w = {0} is outside [0, 2]")]
+    ViewW(f32),
+    /// The playback speed is not a finite number.
+    #[error("view.playback_speed = {0} is not a finite number")]
+    PlaybackSpeed(f32),
+    /// A version-1 project could not be converted.
+    #[error("version 1 project: {0}")]
+    Version1(Box<InvalidProject>),
 }
 
 /// Viewport and panel settings saved with a project.
@@ -167,8 +210,8 @@ impl ProjectFile {
     }
 
     /// Serialises to TOML with paths as given.
-    pub fn to_toml(&self) -> Result<String, String> {
-        toml::to_string_pretty(self).map_err(|e| e.to_string())
+    pub fn to_toml(&self) -> Result<String, InvalidProject> {
+        Ok(toml::to_string_pretty(self)?)
     }
 
     /// Writes the project to `path` (atomically), storing paths relative to its folder.
@@ -196,13 +239,11 @@ impl ProjectFile {
             source,
             path: path.to_path_buf(),
         })?;
-        let parse = |reason: String| ProjectError::Parse {
+        let parse = |reason: InvalidProject| ProjectError::Parse {
             reason,
             path: path.to_path_buf(),
         };
-        let mut table: toml::Table = text
-            .parse()
-            .map_err(|e: toml::de::Error| parse(e.to_string()))?;
+        let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| parse(e.into()))?;
         let version = match table.get("version") {
             // Version 1 wrote every key but let a hand-edited file leave any out: its layout
             // (fabric and effects at the top, the scene's sources as plain strings) tells.
@@ -217,15 +258,14 @@ impl ProjectFile {
                 take_training_fps(&mut table).map_err(parse)?;
                 toml::Value::Table(table)
                     .try_into::<ProjectFile>()
-                    .map_err(|e| parse(e.to_string()))?
+                    .map_err(|e| parse(e.into()))?
             }
             _ => {
-                return Err(parse(format!(
-                    "version {} (this build reads versions 1 to {PROJECT_VERSION})",
-                    table
+                return Err(parse(InvalidProject::Version {
+                    found: table
                         .get("version")
-                        .map_or_else(String::new, |v| v.to_string())
-                )));
+                        .map_or_else(String::new, |v| v.to_string()),
+                }));
             }
         };
         project.check().map_err(parse)?;
@@ -236,23 +276,17 @@ impl ProjectFile {
 
     /// Checks the values a project may hold (a scene being edited may not be trainable yet:
     /// no motion, a garment dropped by another avatar).
-    fn check(&self) -> Result<(), String> {
-        self.scene
-            .validate_values()
-            .map_err(|e| format!("scene: {e}"))?;
-        self.training
-            .validate(self.scene.training_fps)
-            .map_err(|e| format!("training: {e}"))?;
+    fn check(&self) -> Result<(), InvalidProject> {
+        self.scene.validate_values()?;
+        self.training.validate(self.scene.training_fps)?;
         let w = self.view.w;
         if !(w.is_finite() && (0.0..=2.0).contains(&w)) {
-            return Err(format!("view.w = {w} is outside [0, 2]"));
+            return Err(InvalidProject::ViewW(w));
         }
         let speed = self.view.playback_speed;
         if !speed.is_finite() {
             // The app clamps the speed into its range, and a clamp keeps NaN.
-            return Err(format!(
-                "view.playback_speed = {speed} is not a finite number"
-            ));
+            return Err(InvalidProject::PlaybackSpeed(speed));
         }
         Ok(())
     }
@@ -261,7 +295,7 @@ impl ProjectFile {
 /// Removes the `training.fps` key earlier project files wrote (the training rate before it
 /// had one home, the scene's `training_fps`) and returns its value, frames per second; `None`
 /// when the file has none. A value that is not a number is an error naming the key.
-pub(crate) fn take_training_fps(table: &mut toml::Table) -> Result<Option<f32>, String> {
+pub(crate) fn take_training_fps(table: &mut toml::Table) -> Result<Option<f32>, InvalidProject> {
     let Some(training) = table
         .get_mut("training")
         .and_then(toml::Value::as_table_mut)
@@ -272,7 +306,9 @@ pub(crate) fn take_training_fps(table: &mut toml::Table) -> Result<Option<f32>, 
         None => Ok(None),
         Some(toml::Value::Float(f)) => Ok(Some(f as f32)),
         Some(toml::Value::Integer(i)) => Ok(Some(i as f32)),
-        Some(other) => Err(format!("training.fps = {other} is not a number")),
+        Some(other) => Err(InvalidProject::TrainingFps {
+            found: other.to_string(),
+        }),
     }
 }
 
@@ -325,7 +361,7 @@ impl RecentFiles {
             Some(store) => {
                 let json =
                     serde_json::to_vec_pretty(&self.paths).map_err(|e| ProjectError::Parse {
-                        reason: e.to_string(),
+                        reason: e.into(),
                         path: store.clone(),
                     })?;
                 write_atomic(store, &json)
@@ -493,16 +529,23 @@ mod tests {
         let err = ProjectFile::open(&file).unwrap_err().to_string();
         assert!(err.contains("view.w") && err.ends_with("bad.toml"), "{err}");
         std::fs::write(&file, "version = 99\n").unwrap();
-        assert!(
-            ProjectFile::open(&file)
-                .unwrap_err()
-                .to_string()
-                .contains("version 99")
-        );
+        let err = ProjectFile::open(&file).unwrap_err();
+        assert!(err.to_string().contains("version 99"), "{err}");
+        // The reason is typed; the text is made where it is shown.
+        assert!(matches!(
+            err,
+            ProjectError::Parse {
+                reason: InvalidProject::Version { .. },
+                ..
+            }
+        ));
         std::fs::write(&file, "nonsense = [\n").unwrap();
         assert!(matches!(
             ProjectFile::open(&file),
-            Err(ProjectError::Parse { .. })
+            Err(ProjectError::Parse {
+                reason: InvalidProject::Toml(_),
+                ..
+            })
         ));
         assert!(matches!(
             ProjectFile::open(&dir.path().join("missing.toml")),

@@ -14,7 +14,9 @@ use neural_cloth_core::scene::config::{
 use neural_cloth_core::scene::{Effects, FabricParams, UpAxis};
 use neural_cloth_train::TrainConfig;
 
-use super::project::{PROJECT_VERSION, ProjectFile, ViewSettings, take_training_fps};
+use super::project::{
+    InvalidProject, PROJECT_VERSION, ProjectFile, ViewSettings, take_training_fps,
+};
 
 /// Where a version-1 scene came from: `None` means the built-in default.
 #[derive(Debug, Default, Deserialize)]
@@ -69,13 +71,14 @@ pub fn looks_like_v1(table: &toml::Table) -> bool {
 /// avatar and garment; a loaded avatar brought its own animations (all training) and replaced
 /// the built-in motions; extra BVH motions trained; a garment file's skin weights were
 /// smoothed by its name's rule (the loader's default).
-pub fn convert(mut table: toml::Table) -> Result<ProjectFile, String> {
+pub fn convert(mut table: toml::Table) -> Result<ProjectFile, InvalidProject> {
+    let v1 = |e: InvalidProject| InvalidProject::Version1(Box::new(e));
     let training_fps = take_training_fps(&mut table)
-        .map_err(|e| format!("version 1 project: {e}"))?
+        .map_err(v1)?
         .unwrap_or(DEFAULT_TRAINING_FPS);
     let old: ProjectFileV1 = toml::Value::Table(table)
         .try_into()
-        .map_err(|e: toml::de::Error| format!("version 1 project: {e}"))?;
+        .map_err(|e: toml::de::Error| v1(e.into()))?;
     let mut scene = SceneConfig::default_scene();
     let file_motion = |path: PathBuf| MotionSource::File {
         path,

@@ -9,14 +9,14 @@ use neural_cloth_core::scene::Scene;
 use neural_cloth_core::scene::config::SceneConfig;
 use neural_cloth_model::ModelArtifact;
 use neural_cloth_physics::FabricParams;
-use neural_cloth_train::TrainConfig;
 use neural_cloth_train::handle::{TrainCommand, TrainEvent, TrainerHandle};
+use neural_cloth_train::{TrainConfig, TrainError};
 
 use super::error::AppError;
 use super::metrics::{MetricHistory, SettingMarker, push_marker};
 
 /// Where the training run is.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub enum TrainingState {
     /// Nothing started (or reset).
     Idle,
@@ -26,8 +26,24 @@ pub enum TrainingState {
     Paused,
     /// Stop was requested; waiting for the final checkpoint.
     Stopping,
-    /// The run ended: a summary line, or the error that ended it.
-    Finished(Result<String, String>),
+    /// The run ended: a summary line, or the error that ended it (shared with the trainer's
+    /// event; shown as text by the training panel).
+    Finished(Result<String, Arc<TrainError>>),
+}
+
+/// States are equal when they are the same state; two failed runs when they share the one
+/// error (the trainer's event hands it out shared).
+impl PartialEq for TrainingState {
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Self::Finished(Ok(a)), Self::Finished(Ok(b))) => a == b,
+            (Self::Finished(Err(a)), Self::Finished(Err(b))) => Arc::ptr_eq(a, b),
+            (a, b) => {
+                !matches!(a, Self::Finished(_))
+                    && std::mem::discriminant(a) == std::mem::discriminant(b)
+            }
+        }
+    }
 }
 
 impl TrainingState {
@@ -195,14 +211,14 @@ impl TrainingControl {
 
     /// Pauses a running trainer.
     pub fn pause(&mut self) {
-        if self.state == TrainingState::Running && self.send(TrainCommand::Pause) {
+        if matches!(self.state, TrainingState::Running) && self.send(TrainCommand::Pause) {
             self.state = TrainingState::Paused;
         }
     }
 
     /// Resumes a paused trainer.
     pub fn resume(&mut self) {
-        if self.state == TrainingState::Paused && self.send(TrainCommand::Resume) {
+        if matches!(self.state, TrainingState::Paused) && self.send(TrainCommand::Resume) {
             self.state = TrainingState::Running;
         }
     }
@@ -338,12 +354,12 @@ impl TrainingControl {
                 self.note(format!("diverged at step {diverged_at}; back to step {restored_step}, learning rate {learning_rate:.2e}"));
             }
             TrainEvent::Paused => {
-                if self.state == TrainingState::Running {
+                if matches!(self.state, TrainingState::Running) {
                     self.state = TrainingState::Paused;
                 }
             }
             TrainEvent::Resumed => {
-                if self.state == TrainingState::Paused {
+                if matches!(self.state, TrainingState::Paused) {
                     self.state = TrainingState::Running;
                 }
             }
@@ -369,17 +385,14 @@ impl TrainingControl {
                 "⚠ training stalled at step {step}: {reason}; {remedy}"
             )),
             TrainEvent::Finished(result) => {
-                // Kept as text: the app shows it, nothing acts on it.
-                let result = result
-                    .map(|s| {
-                        format!(
-                            "{} steps in {:.1} s, run {}",
-                            s.steps,
-                            s.wall_secs,
-                            s.run_dir.display()
-                        )
-                    })
-                    .map_err(|e| e.to_string());
+                let result = result.map(|s| {
+                    format!(
+                        "{} steps in {:.1} s, run {}",
+                        s.steps,
+                        s.wall_secs,
+                        s.run_dir.display()
+                    )
+                });
                 if let Err(e) = &result {
                     self.note(format!("training failed: {e}"));
                 }

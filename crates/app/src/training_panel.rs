@@ -92,10 +92,10 @@ impl NeuralClothApp {
                 ui.add(
                     egui::ProgressBar::new(fraction)
                         .text(text)
-                        .animate(state == TrainingState::Running),
+                        .animate(matches!(state, TrainingState::Running)),
                 );
                 if let TrainingState::Finished(Err(e)) = &state {
-                    ui.colored_label(egui::Color32::from_rgb(255, 100, 90), e);
+                    ui.colored_label(egui::Color32::from_rgb(255, 100, 90), e.to_string());
                 }
                 if let Some(v) = self.state.training.history.validation.last() {
                     let text = format!(

@@ -17,8 +17,8 @@ struct GpuShared {
     target: RenderTarget,
     /// Revision of the frame last uploaded (re-uploads only when it changes).
     uploaded: Option<u64>,
-    /// Last upload error, shown over the viewport.
-    error: Option<String>,
+    /// Last upload or draw error, shown over the viewport (shared with the UI thread).
+    error: Option<Arc<neural_cloth_render::RenderError>>,
 }
 
 /// Viewport GPU state that exists only when egui runs on wgpu.
@@ -112,18 +112,14 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
         };
         let gpu = &mut *gpu;
         if gpu.uploaded != Some(self.revision) {
-            gpu.error = gpu
-                .renderer
-                .upload(&self.frame)
-                .err()
-                .map(|e| e.to_string());
+            gpu.error = gpu.renderer.upload(&self.frame).err().map(Arc::new);
             gpu.uploaded = Some(self.revision);
         }
         if let Err(e) = gpu
             .renderer
             .render(encoder, &gpu.target, &self.camera, &self.options)
         {
-            gpu.error = Some(e.to_string());
+            gpu.error = Some(Arc::new(e));
         }
         Vec::new()
     }
@@ -344,7 +340,7 @@ impl Viewport {
             painter.text(
                 rect.left_bottom() + egui::vec2(8.0, -8.0),
                 egui::Align2::LEFT_BOTTOM,
-                e,
+                e.to_string(),
                 egui::FontId::proportional(13.0),
                 egui::Color32::from_rgb(255, 120, 100),
             );
