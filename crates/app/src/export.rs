@@ -142,8 +142,6 @@ pub struct ExportSettings {
     /// Existing outputs the user was asked about before overwriting (Some: the question is
     /// shown and the export waits for the answer).
     pub confirm_overwrite: Option<Vec<PathBuf>>,
-    /// Outcome of the last export: a summary or an error.
-    pub last_result: Option<Result<String, String>>,
 }
 
 impl Default for ExportSettings {
@@ -157,7 +155,6 @@ impl Default for ExportSettings {
             include_body: false,
             rest_obj: false,
             confirm_overwrite: None,
-            last_result: None,
         }
     }
 }

@@ -12,16 +12,19 @@
 
 pub mod background;
 pub mod confirm_panel;
+pub mod cost;
 pub mod cost_panel;
 pub mod curve_math;
 pub mod effects_panel;
 pub mod error;
 pub mod export;
 pub mod export_dialog;
+pub mod export_service;
 pub mod fabric_panel;
 pub mod file_browser;
 pub mod file_picker;
 pub mod file_picker_panel;
+pub mod fit;
 pub mod fit_panel;
 pub mod frame_builder;
 pub mod menu_panel;
@@ -38,6 +41,7 @@ pub mod runs_panel;
 pub mod scene_edit;
 pub mod scene_panel;
 pub mod sim_check;
+pub mod sim_check_panel;
 pub mod state;
 pub mod status_panel;
 pub mod timeline_panel;
@@ -89,13 +93,11 @@ pub struct NeuralClothApp {
     /// Show the metric curves panel.
     pub show_curves: bool,
     /// The accuracy/time experiment of the Cost panel.
-    pub cost: cost_panel::CostPanel,
+    pub cost: cost::CostState,
     /// "Fit garment" running on its own thread.
-    pub fit: fit_panel::FitPanel,
-    /// Exporter behind the export dialog.
-    exporter: Option<Arc<dyn export::Exporter>>,
-    /// The export running on its own thread.
-    export_job: export_dialog::ExportJob,
+    pub fit: fit::FitState,
+    /// The export dialog's service: the exporter, the running export, the last outcome.
+    pub export: export_service::ExportService,
     /// Scene revision the camera was framed for.
     framed_revision: u64,
     /// Repaint request handed to the trainer thread.
@@ -129,10 +131,9 @@ impl NeuralClothApp {
             state,
             viewport: Viewport::new(render_state),
             show_curves: true,
-            cost: cost_panel::CostPanel::default(),
-            fit: fit_panel::FitPanel::default(),
-            exporter: options.exporter.map(Arc::from),
-            export_job: Default::default(),
+            cost: cost::CostState::default(),
+            fit: fit::FitState::default(),
+            export: export_service::ExportService::new(options.exporter.map(Arc::from)),
             framed_revision: 0,
             notify: notify.clone(),
             picker: file_picker::FilePicker::new(options.file_dialog),
@@ -176,7 +177,7 @@ impl NeuralClothApp {
         }
         self.cost.poll();
         self.cost.check.poll();
-        self.poll_export();
+        self.export.poll(&mut self.state);
     }
 
     /// Lays out every panel and the viewport.

@@ -1,6 +1,7 @@
-//! "Check against simulation" in the Cost panel: compares the current run's trained network
-//! with the reference simulator ([`neural_cloth_train::compare`]) on a background thread with
-//! progress and cancel, and tabulates the result.
+//! The state of "Check against simulation" in the Cost panel
+//! ([`super::sim_check_panel`]): compares the current run's trained network with the
+//! reference simulator ([`neural_cloth_train::compare`]) on a background thread with progress
+//! and cancel, and keeps the result.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -101,163 +102,23 @@ impl SimCheck {
     pub fn progress(&self) -> Option<CompareProgress> {
         self.job.as_ref().and_then(|j| j.progress().flatten())
     }
-}
 
-impl super::NeuralClothApp {
-    /// "Check against simulation": settings, start/cancel with progress, and the result.
-    pub fn sim_check_ui(&mut self, ui: &mut egui::Ui) {
-        ui.separator();
-        ui.strong("Check against simulation");
-        ui.label("The current run's network against the reference simulator on the same motion: distance, swing and the paper's metrics.");
-        let check = &mut self.cost.check;
-        if check.is_running() {
-            if let Some(p) = check.progress() {
-                let text = format!("{}: {} ({}/{})", p.motion, p.phase.label(), p.done, p.total);
-                ui.add(egui::ProgressBar::new(p.fraction() as f32).text(text));
-            }
-            if ui.button("Cancel check").clicked() {
-                check.cancel();
-            }
-            ui.ctx()
-                .request_repaint_after(std::time::Duration::from_millis(250));
-        } else {
-            let shown = self.state.current_motion().map(|m| m.name.clone());
-            ui.horizontal(|ui| {
-                let label = ui.label("iterations per frame");
-                ui.add(egui::DragValue::new(&mut check.iterations).range(1..=10_000))
-                    .labelled_by(label.id);
-            });
-            let label = match &shown {
-                Some(name) => format!("only the shown motion ('{name}')"),
-                None => "only the shown motion".into(),
-            };
-            ui.add_enabled(
-                shown.is_some(),
-                egui::Checkbox::new(&mut check.shown_motion_only, label),
-            )
-            .on_hover_text("Otherwise: every motion of the scene's validation split");
-            let run_dir = self.state.training.run_dir.clone();
-            let reason = unavailable_reason(run_dir.as_deref());
-            let button = ui
-                .add_enabled(
-                    reason.is_none(),
-                    egui::Button::new("Check against simulation"),
-                )
-                .on_disabled_hover_text(reason.unwrap_or_default());
-            if button.clicked()
-                && let Some(dir) = run_dir
-            {
-                let motion = shown.filter(|_| check.shown_motion_only);
-                if let Err(e) = check.start(dir, motion, self.notify.clone()) {
-                    check.result = Some(Err(e));
-                }
-            }
+    /// "Check against simulation" pressed: compares the run at `run_dir` (none: nothing to
+    /// check) on the motion shown (`shown`) when only that one is asked for, else on the
+    /// validation motions; why it cannot start becomes the result.
+    pub fn check_clicked(
+        &mut self,
+        run_dir: Option<PathBuf>,
+        shown: Option<String>,
+        notify: Arc<dyn Fn() + Send + Sync>,
+    ) {
+        let Some(dir) = run_dir else {
+            return;
+        };
+        let motion = shown.filter(|_| self.shown_motion_only);
+        if let Err(e) = self.start(dir, motion, notify) {
+            self.result = Some(Err(e));
         }
-        match &self.cost.check.result {
-            Some(Ok(r)) => compare_table_ui(ui, r),
-            Some(Err(e)) => {
-                ui.colored_label(ui.visuals().error_fg_color, e.to_string());
-            }
-            None => {}
-        }
-    }
-}
-
-/// `value` with `decimals`, or a dash.
-fn cell(value: Option<f64>, decimals: usize) -> String {
-    value.map_or_else(|| "—".into(), |v| format!("{v:.decimals$}"))
-}
-
-/// The comparison as one table per motion.
-fn compare_table_ui(ui: &mut egui::Ui, r: &CompareReport) {
-    ui.label(format!(
-        "step {}, '{}' ({} vertices), {} fps, w = {}, reference {} iterations per frame",
-        r.step, r.garment, r.vertices, r.fps, r.options.w, r.options.iterations
-    ));
-    for m in &r.motions {
-        let s = &m.measures;
-        ui.label(format!(
-            "'{}': {} frames ({} still), reference {}",
-            m.name,
-            s.frames,
-            s.still_frames,
-            if m.reference.cached {
-                "cached"
-            } else {
-                "simulated"
-            }
-        ));
-        egui::Grid::new(("compare table", m.name.as_str()))
-            .striped(true)
-            .show(ui, |ui| {
-                for h in ["", "all", "still", "moving"] {
-                    ui.strong(h);
-                }
-                ui.end_row();
-                let mut row = |label: &str, values: [Option<f64>; 3], decimals: usize| {
-                    ui.label(label);
-                    for v in values {
-                        ui.label(cell(v, decimals));
-                    }
-                    ui.end_row();
-                };
-                row(
-                    "mean mm",
-                    [
-                        Some(s.all.mean_mm),
-                        s.still.map(|d| d.mean_mm),
-                        s.moving.map(|d| d.mean_mm),
-                    ],
-                    1,
-                );
-                row(
-                    "p95 mm",
-                    [
-                        Some(s.all.p95_mm),
-                        s.still.map(|d| d.p95_mm),
-                        s.moving.map(|d| d.p95_mm),
-                    ],
-                    1,
-                );
-                let (n, q) = (s.amplitude.network, s.amplitude.simulator);
-                row("swing net mm", [Some(n.all_mm), n.still_mm, n.moving_mm], 1);
-                row("swing sim mm", [Some(q.all_mm), q.still_mm, q.moving_mm], 1);
-                if let Some(h) = &s.hem {
-                    row(
-                        "hem net m",
-                        [
-                            None,
-                            h.still.map(|p| p.network_m),
-                            h.moving.map(|p| p.network_m),
-                        ],
-                        3,
-                    );
-                    row(
-                        "hem sim m",
-                        [
-                            None,
-                            h.still.map(|p| p.simulator_m),
-                            h.moving.map(|p| p.simulator_m),
-                        ],
-                        3,
-                    );
-                }
-            });
-        egui::Grid::new(("compare metrics", m.name.as_str()))
-            .striped(true)
-            .show(ui, |ui| {
-                for h in ["metric", "network", "simulator"] {
-                    ui.strong(h);
-                }
-                ui.end_row();
-                let sim = m.metrics.simulator.named();
-                for ((name, a), (_, b)) in m.metrics.network.named().iter().zip(&sim) {
-                    ui.label(*name);
-                    ui.label(format!("{a:.4}"));
-                    ui.label(format!("{b:.4}"));
-                    ui.end_row();
-                }
-            });
     }
 }
 

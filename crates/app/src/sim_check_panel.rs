@@ -1,0 +1,175 @@
+//! "Check against simulation" in the Cost panel: iterations, which motions, start / cancel
+//! with progress, and the comparison's tables (the state: [`super::sim_check::SimCheck`]).
+
+use neural_cloth_train::compare::CompareReport;
+
+use super::sim_check::{SimCheck, unavailable_reason};
+
+impl super::NeuralClothApp {
+    /// "Check against simulation": settings, start/cancel with progress, and the result.
+    pub fn sim_check_ui(&mut self, ui: &mut egui::Ui) {
+        ui.separator();
+        ui.strong("Check against simulation");
+        ui.label("The current run's network against the reference simulator on the same motion: distance, swing and the paper's metrics.");
+        if self.cost.check.is_running() {
+            check_progress_ui(ui, &self.cost.check);
+        } else {
+            let shown = self.state.current_motion().map(|m| m.name.clone());
+            let run_dir = self.state.training.run_dir.clone();
+            let reason = unavailable_reason(run_dir.as_deref());
+            if check_settings_ui(ui, &mut self.cost.check, shown.as_deref(), reason) {
+                self.cost
+                    .check
+                    .check_clicked(run_dir, shown, self.notify.clone());
+            }
+        }
+        match &self.cost.check.result {
+            Some(Ok(r)) => compare_table_ui(ui, r),
+            Some(Err(e)) => {
+                ui.colored_label(ui.visuals().error_fg_color, e.to_string());
+            }
+            None => {}
+        }
+    }
+}
+
+/// The running check's progress and its Cancel button.
+fn check_progress_ui(ui: &mut egui::Ui, check: &SimCheck) {
+    if let Some(p) = check.progress() {
+        let text = format!("{}: {} ({}/{})", p.motion, p.phase.label(), p.done, p.total);
+        ui.add(egui::ProgressBar::new(p.fraction() as f32).text(text));
+    }
+    if ui.button("Cancel check").clicked() {
+        check.cancel();
+    }
+    ui.ctx()
+        .request_repaint_after(std::time::Duration::from_millis(250));
+}
+
+/// Iterations per frame, "only the shown motion" (`shown`: its name) and the start button,
+/// disabled with `unavailable` as its hover text. Returns whether the button was clicked.
+fn check_settings_ui(
+    ui: &mut egui::Ui,
+    check: &mut SimCheck,
+    shown: Option<&str>,
+    unavailable: Option<String>,
+) -> bool {
+    ui.horizontal(|ui| {
+        let label = ui.label("iterations per frame");
+        ui.add(egui::DragValue::new(&mut check.iterations).range(1..=10_000))
+            .labelled_by(label.id);
+    });
+    let label = match shown {
+        Some(name) => format!("only the shown motion ('{name}')"),
+        None => "only the shown motion".into(),
+    };
+    ui.add_enabled(
+        shown.is_some(),
+        egui::Checkbox::new(&mut check.shown_motion_only, label),
+    )
+    .on_hover_text("Otherwise: every motion of the scene's validation split");
+    ui.add_enabled(
+        unavailable.is_none(),
+        egui::Button::new("Check against simulation"),
+    )
+    .on_disabled_hover_text(unavailable.unwrap_or_default())
+    .clicked()
+}
+
+/// `value` with `decimals`, or a dash.
+fn cell(value: Option<f64>, decimals: usize) -> String {
+    value.map_or_else(|| "—".into(), |v| format!("{v:.decimals$}"))
+}
+
+/// The comparison as one table per motion.
+fn compare_table_ui(ui: &mut egui::Ui, r: &CompareReport) {
+    ui.label(format!(
+        "step {}, '{}' ({} vertices), {} fps, w = {}, reference {} iterations per frame",
+        r.step, r.garment, r.vertices, r.fps, r.options.w, r.options.iterations
+    ));
+    for m in &r.motions {
+        let s = &m.measures;
+        ui.label(format!(
+            "'{}': {} frames ({} still), reference {}",
+            m.name,
+            s.frames,
+            s.still_frames,
+            if m.reference.cached {
+                "cached"
+            } else {
+                "simulated"
+            }
+        ));
+        egui::Grid::new(("compare table", m.name.as_str()))
+            .striped(true)
+            .show(ui, |ui| {
+                for h in ["", "all", "still", "moving"] {
+                    ui.strong(h);
+                }
+                ui.end_row();
+                let mut row = |label: &str, values: [Option<f64>; 3], decimals: usize| {
+                    ui.label(label);
+                    for v in values {
+                        ui.label(cell(v, decimals));
+                    }
+                    ui.end_row();
+                };
+                row(
+                    "mean mm",
+                    [
+                        Some(s.all.mean_mm),
+                        s.still.map(|d| d.mean_mm),
+                        s.moving.map(|d| d.mean_mm),
+                    ],
+                    1,
+                );
+                row(
+                    "p95 mm",
+                    [
+                        Some(s.all.p95_mm),
+                        s.still.map(|d| d.p95_mm),
+                        s.moving.map(|d| d.p95_mm),
+                    ],
+                    1,
+                );
+                let (n, q) = (s.amplitude.network, s.amplitude.simulator);
+                row("swing net mm", [Some(n.all_mm), n.still_mm, n.moving_mm], 1);
+                row("swing sim mm", [Some(q.all_mm), q.still_mm, q.moving_mm], 1);
+                if let Some(h) = &s.hem {
+                    row(
+                        "hem net m",
+                        [
+                            None,
+                            h.still.map(|p| p.network_m),
+                            h.moving.map(|p| p.network_m),
+                        ],
+                        3,
+                    );
+                    row(
+                        "hem sim m",
+                        [
+                            None,
+                            h.still.map(|p| p.simulator_m),
+                            h.moving.map(|p| p.simulator_m),
+                        ],
+                        3,
+                    );
+                }
+            });
+        egui::Grid::new(("compare metrics", m.name.as_str()))
+            .striped(true)
+            .show(ui, |ui| {
+                for h in ["metric", "network", "simulator"] {
+                    ui.strong(h);
+                }
+                ui.end_row();
+                let sim = m.metrics.simulator.named();
+                for ((name, a), (_, b)) in m.metrics.network.named().iter().zip(&sim) {
+                    ui.label(*name);
+                    ui.label(format!("{a:.4}"));
+                    ui.label(format!("{b:.4}"));
+                    ui.end_row();
+                }
+            });
+    }
+}
