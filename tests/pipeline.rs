@@ -241,6 +241,13 @@ fn checkpoints_reload_identically_and_resume_continues() {
     };
     assert_eq!(predict(&trained.artifact), predict(&snapshot));
 
+    // Regression (a checkpoint folder loaded the run's newest checkpoint): naming the folder
+    // of step 3 loads step 3, whose weights are not those of step 6.
+    let older = load_trained(&run.join("checkpoints").join("step-00000003")).unwrap();
+    assert_eq!(older.step, 3);
+    assert_ne!(predict(&older.artifact), predict(&snapshot));
+    assert!(load_trained(&run.join("checkpoints").join("step-00000005")).is_err());
+
     // Resume: the step count and the metric history continue.
     let resumed = TrainConfig {
         max_steps: Some(9),

@@ -102,7 +102,7 @@ fn sync_dir(path: &Path) {
 }
 
 /// The step of a checkpoint folder name `step-N`.
-fn step_of(name: &str) -> Option<u64> {
+pub(crate) fn step_of(name: &str) -> Option<u64> {
     name.strip_prefix("step-")?.parse().ok()
 }
 

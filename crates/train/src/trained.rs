@@ -78,20 +78,25 @@ impl TrainedModel {
     }
 }
 
-/// Loads the newest checkpoint of the run at `run_dir` (a run directory, or a checkpoint folder
-/// inside one) with the scene it was trained on. A damaged newest checkpoint falls back to
-/// the previous complete one ([`TrainedModel::warnings`] says so); a run of which no
-/// checkpoint loads is an error naming the file.
+/// Loads a trained model with the scene it was trained on: the newest checkpoint of the run
+/// at `run_dir`, or, when `run_dir` is a checkpoint folder inside a run
+/// (`RUN/checkpoints/step-N`), exactly that checkpoint. A damaged newest checkpoint falls
+/// back to the previous complete one ([`TrainedModel::warnings`] says so); a run of which no
+/// checkpoint loads, or a named checkpoint that does not load, is an error naming the file.
 pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
-    let root = if run_dir.join("run.json").is_file() {
-        run_dir.to_path_buf()
+    let (root, named_step) = if run_dir.join("run.json").is_file() {
+        (run_dir.to_path_buf(), None)
     } else {
         // A checkpoint folder: RUN/checkpoints/step-N.
-        run_dir
+        let step = run_dir
+            .file_name()
+            .and_then(|n| crate::checkpoint::step_of(&n.to_string_lossy()));
+        let root = run_dir
             .parent()
             .and_then(|p| p.parent())
             .map(Path::to_path_buf)
-            .unwrap_or_else(|| run_dir.to_path_buf())
+            .unwrap_or_else(|| run_dir.to_path_buf());
+        (root, step)
     };
     let run = RunDir::open(&root)?;
     let meta = run.meta()?;
@@ -100,9 +105,18 @@ pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
     scene.training_fps = meta.training_fps;
     refuse_changed_scene(&meta, &scene, &root)?;
     let device = device_for(BackendKind::Cpu, false);
-    let loaded = run
-        .newest_loadable(|step| load_model(&run, &meta, step, &device))?
-        .ok_or_else(|| TrainError::Checkpoint(format!("no checkpoint in {}", root.display())))?;
+    let loaded = match named_step {
+        Some(step) => crate::checkpoint::Loaded {
+            step,
+            value: load_model(&run, &meta, step, &device)?,
+            warnings: Vec::new(),
+        },
+        None => run
+            .newest_loadable(|step| load_model(&run, &meta, step, &device))?
+            .ok_or_else(|| {
+                TrainError::Checkpoint(format!("no checkpoint in {}", root.display()))
+            })?,
+    };
     let (model, weights) = loaded.value;
     let mut warnings = recorded.warnings;
     warnings.extend(loaded.warnings);
