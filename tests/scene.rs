@@ -500,12 +500,43 @@ fn spin_reaches_four_pi_and_jump_accelerates() {
 }
 
 #[test]
+fn twirl_turns_both_ways_faster_than_the_spin_and_repeats_smoothly() {
+    let fps = 240.0;
+    let twirl = procedural::motion(MotionKind::Twirl, fps, 16.0).unwrap();
+    // Signed yaw rate of the hips about +Y, frame to frame.
+    let rates: Vec<f32> = twirl
+        .frames
+        .windows(2)
+        .map(|w| {
+            let d = w[0].rotations[0].inverse() * w[1].rotations[0];
+            let signed = if d.coords.y >= 0.0 { 1.0 } else { -1.0 };
+            signed * d.angle() * fps
+        })
+        .collect();
+    let spin = 4.0 * std::f32::consts::PI;
+    let fastest = rates.iter().fold(0.0f32, |m, r| m.max(*r));
+    let fastest_back = rates.iter().fold(0.0f32, |m, r| m.min(*r));
+    assert!(fastest > 1.2 * spin, "{fastest} rad/s");
+    assert!(fastest_back < -1.1 * spin, "{fastest_back} rad/s");
+    // No jump in the yaw rate anywhere, the repeat at 7.6 s included.
+    let worst_step = rates
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs() * fps)
+        .fold(0.0f32, f32::max);
+    assert!(worst_step < 60.0, "{worst_step} rad/s²");
+    let start = &twirl.frames[0];
+    assert!(start.rotations.iter().all(|q| q.angle() < 1e-5));
+    let end = procedural::motions::pose_at(MotionKind::Twirl, 7.6, 7.6);
+    assert!(end.rotations[1..].iter().all(|q| q.angle() < 1e-4));
+}
+
+#[test]
 fn default_scene_builds_from_the_asset() {
     let text = std::fs::read_to_string("assets/default-scene.toml").unwrap();
     let config = SceneConfig::from_toml_str(&text).unwrap();
     let scene = procedural::build_builtin(&config).unwrap();
     assert_eq!(scene.name, "default");
-    assert_eq!(scene.motions.len(), 6);
+    assert_eq!(scene.motions.len(), MotionKind::ALL.len());
     assert_eq!(scene.training_fps, 30.0);
     assert_eq!(scene.fabric.preset_name(), Some("default"));
     assert!(scene.effects.dynamics && !scene.effects.pinning);

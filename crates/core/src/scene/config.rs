@@ -195,7 +195,7 @@ fn check_motion_values(k: usize, m: &MotionSource) -> Result<(), ConfigError> {
 
 impl SceneConfig {
     /// The built-in default scene: mannequin, t-shirt (about 10K DoF) and all procedural
-    /// motions, split per action (idle/walk/run/jump train, turn validation, spin test); every
+    /// motions, split per action (idle/walk/run/jump/twirl train, turn validation, spin test); every
     /// effect but pinning, friction included.
     pub fn default_scene() -> Self {
         let motions = MotionKind::ALL
@@ -205,6 +205,7 @@ impl SceneConfig {
                 duration_secs: match kind {
                     MotionKind::Turn => 6.4,
                     MotionKind::Jump => 5.4,
+                    MotionKind::Twirl => 7.6,
                     _ => 6.0,
                 },
                 speed: 1.0,

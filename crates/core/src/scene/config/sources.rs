@@ -103,7 +103,8 @@ pub enum GarmentSource {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "RawSource", into = "RawSource")]
 pub enum MotionSource {
-    /// A procedural motion: `builtin = "idle" | "walk" | "run" | "jump" | "turn" | "spin"`,
+    /// A procedural motion: `builtin = "idle" | "walk" | "run" | "jump" | "turn" | "spin" |
+    /// "twirl"`,
     /// optional `duration_secs`, `speed`, `fps`, `split`, `name` (needs the mannequin).
     Builtin {
         /// Which one.

@@ -23,7 +23,7 @@ use super::config::{AvatarSource, ConfigError, GarmentSource, MotionSource, Scen
 use super::{Avatar, Garment, GarmentOptions, Motion, Scene, SceneError};
 
 /// The default scene: mannequin, t-shirt (about 10K DoF) and every procedural motion
-/// (idle, walk, run, jump for training, turn for validation, spin for testing).
+/// (idle, walk, run, jump, twirl for training, turn for validation, spin for testing).
 pub fn default_scene() -> Result<Scene, SceneError> {
     build_builtin(&SceneConfig::default_scene()).map_err(|e| match e {
         ConfigError::Scene(e) => e,

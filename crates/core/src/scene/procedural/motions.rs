@@ -34,15 +34,20 @@ pub enum MotionKind {
     Turn,
     /// Spinning about Y at 4π rad/s (two turns per second) with the arms out.
     Spin,
+    /// Turning on the spot one way and then the other at changing speeds (up to 2.6 turns
+    /// per second), the arms rising and falling: rotations of every speed the spin has, in
+    /// a different clip, so that a network trained on it meets fast turns before the spin.
+    Twirl,
 }
 
 impl MotionKind {
     /// All kinds.
-    pub const ALL: [MotionKind; 6] = [
+    pub const ALL: [MotionKind; 7] = [
         MotionKind::Idle,
         MotionKind::Walk,
         MotionKind::Run,
         MotionKind::Jump,
+        MotionKind::Twirl,
         MotionKind::Turn,
         MotionKind::Spin,
     ];
@@ -56,6 +61,7 @@ impl MotionKind {
             MotionKind::Jump => "jump",
             MotionKind::Turn => "turn",
             MotionKind::Spin => "spin",
+            MotionKind::Twirl => "twirl",
         }
     }
 
@@ -67,9 +73,11 @@ impl MotionKind {
     /// The split this motion gets in the default scene.
     pub fn default_split(self) -> Split {
         match self {
-            MotionKind::Idle | MotionKind::Walk | MotionKind::Run | MotionKind::Jump => {
-                Split::Train
-            }
+            MotionKind::Idle
+            | MotionKind::Walk
+            | MotionKind::Run
+            | MotionKind::Jump
+            | MotionKind::Twirl => Split::Train,
             MotionKind::Turn => Split::Validation,
             MotionKind::Spin => Split::Test,
         }
@@ -378,6 +386,61 @@ fn spin(t: f32, duration: f32) -> Pose {
     b.finish()
 }
 
+/// Twirl keys: (time s, root yaw rate in turns per second, arm raise in [0, 1]); the yaw
+/// rate passes through every speed of the spin in both directions, the arms are out at some
+/// speeds and down at others. Starts and ends at rest.
+const TWIRL_KEYS: [(f32, f32, f32); 10] = [
+    (0.0, 0.0, 0.0),
+    (0.8, 0.8, 0.6),
+    (1.8, 2.6, 1.0),
+    (2.6, 2.2, 0.3),
+    (3.4, 0.0, 0.0),
+    (4.2, -1.4, 0.8),
+    (5.2, -2.4, 0.4),
+    (6.0, -1.0, 1.0),
+    (6.8, 0.6, 0.5),
+    (7.6, 0.0, 0.0),
+];
+
+/// Root yaw (rad) of the twirl at `t`: the integral of its yaw rate, which is a Hermite
+/// curve through the keys with zero slope at each key, so the integral is closed form
+/// per segment.
+fn twirl_yaw(t: f32) -> (f32, f32) {
+    let mut yaw = 0.0;
+    for w in TWIRL_KEYS.windows(2) {
+        let ((t0, r0, _), (t1, r1, _)) = (w[0], w[1]);
+        let dt = t1 - t0;
+        if dt <= 0.0 {
+            continue;
+        }
+        // Rate on the segment: r0 + (r1 - r0) · s(u), s the smoothstep; ∫_0^u s = u³ - u⁴/2.
+        let u = ((t - t0) / dt).clamp(0.0, 1.0);
+        yaw += TAU * dt * (r0 * u + (r1 - r0) * (u * u * u - 0.5 * u * u * u * u));
+        if t <= t1 {
+            return (yaw, TAU * (r0 + (r1 - r0) * smoothstep(u)));
+        }
+    }
+    (yaw, 0.0)
+}
+
+fn twirl(t: f32) -> Pose {
+    // Longer takes repeat the cycle; it starts and ends at rest, so the yaw carries on.
+    let cycle = TWIRL_KEYS[TWIRL_KEYS.len() - 1].0;
+    let cycles = (t / cycle).floor();
+    let t = t - cycles * cycle;
+    let (yaw, rate) = twirl_yaw(t);
+    let yaw = yaw + cycles * twirl_yaw(cycle).0;
+    let arms = hermite(&TWIRL_KEYS.map(|(time, _, arms)| (time, arms, 0.0)), t);
+    let amount = (rate.abs() / SPIN_RAD_PER_SEC).min(1.0);
+    let mut b = PoseBuilder::new();
+    stepping(&mut b, t, 2.0, 0.5 * amount);
+    b.rotations[HIPS] = ry(yaw);
+    b.rotations[SPINE2] = ry(-0.1 * rate / SPIN_RAD_PER_SEC);
+    b.pair(LEFT_ARM, rz(ARM_DROP_RAD * arms), rz(ARM_DROP_RAD * arms));
+    b.root.y -= 0.01 * amount;
+    b.finish()
+}
+
 /// The pose of motion `kind` at `t_secs` into a take lasting `duration_secs`.
 pub fn pose_at(kind: MotionKind, t_secs: f32, duration_secs: f32) -> Pose {
     let t = if t_secs.is_finite() {
@@ -392,6 +455,7 @@ pub fn pose_at(kind: MotionKind, t_secs: f32, duration_secs: f32) -> Pose {
         MotionKind::Jump => jump(t),
         MotionKind::Turn => turn(t),
         MotionKind::Spin => spin(t, duration_secs),
+        MotionKind::Twirl => twirl(t),
     }
 }
 
