@@ -236,7 +236,6 @@ impl neural_cloth::app::TrainerLauncher for SoakLauncher {
             train: request.config,
             model: neural_cloth::model::ClothNetConfig::default(),
             descriptors: neural_cloth::model::DescriptorConfig::default(),
-            fabric: None,
             location: neural_cloth::train::RunLocation::NewUnder(request.run_dir),
         };
         Ok(neural_cloth::train::Trainer::spawn(setup, Some(notify))?)

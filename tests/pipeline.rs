@@ -67,7 +67,6 @@ fn setup(dir: &Path, train: TrainConfig, location: Option<RunLocation>) -> Train
         train,
         model: small_model(),
         descriptors: DescriptorConfig::default(),
-        fabric: None,
         location: location.unwrap_or_else(|| RunLocation::At(dir.to_path_buf())),
     }
 }
@@ -743,7 +742,6 @@ fn skirt_losses(edit: impl Fn(&mut neural_cloth::scene::config::Effects)) -> Vec
         train: quick_config(),
         model: small_model(),
         descriptors: DescriptorConfig::default(),
-        fabric: None,
         location: RunLocation::At(dir.path().to_path_buf()),
     })
     .unwrap();
@@ -812,7 +810,6 @@ fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
             },
             model: small_model(),
             descriptors: DescriptorConfig::default(),
-            fabric: None,
             location: RunLocation::At(dir.path().to_path_buf()),
         })
         .unwrap();
@@ -870,7 +867,6 @@ fn pinning_adds_a_positive_term_when_the_waistband_moves() {
         train: isolated.clone(),
         model,
         descriptors: DescriptorConfig::default(),
-        fabric: None,
         location: RunLocation::At(dir.path().to_path_buf()),
     })
     .unwrap();
@@ -886,7 +882,6 @@ fn pinning_adds_a_positive_term_when_the_waistband_moves() {
         train: isolated,
         model,
         descriptors: DescriptorConfig::default(),
-        fabric: None,
         location: RunLocation::At(dir2.path().to_path_buf()),
     })
     .unwrap();
@@ -1011,7 +1006,6 @@ pinning = true
             },
             model: super::small_model(),
             descriptors: Default::default(),
-            fabric: None,
             location: RunLocation::At(run.to_path_buf()),
         };
         let (_, result) = super::run_to_end(Trainer::spawn(setup, None).unwrap());

@@ -26,7 +26,6 @@ impl TrainerLauncher for RealLauncher {
             model: ClothNetConfig::default(),
             descriptors: DescriptorConfig::default(),
             // The scene's own fabric.
-            fabric: None,
             location: RunLocation::NewUnder(request.run_dir),
         };
         Ok(Trainer::spawn(setup, Some(notify))?)

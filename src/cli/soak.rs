@@ -324,7 +324,6 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         train,
         model: ClothNetConfig::default(),
         descriptors: DescriptorConfig::default(),
-        fabric: None,
         location: RunLocation::NewUnder(args.out.join("runs")),
     };
     let csv = args

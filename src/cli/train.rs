@@ -358,7 +358,6 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         train: train.clone(),
         model,
         descriptors: DescriptorConfig::default(),
-        fabric: None,
         location,
     };
     let handle = Trainer::spawn(setup, None)?;

@@ -41,7 +41,6 @@ fn train_tiny_run(run: &Path, steps: u64) {
         },
         model: ClothNetConfig::default(),
         descriptors: DescriptorConfig::default(),
-        fabric: None,
         location: RunLocation::At(run.to_path_buf()),
     };
     let handle = Trainer::spawn(setup, None).expect("trainer starts");

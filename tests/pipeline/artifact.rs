@@ -77,7 +77,6 @@ fn bake_of_a_60_fps_model_steps_at_60_fps() {
         train: few_steps(),
         model: super::small_model(),
         descriptors: DescriptorConfig::default(),
-        fabric: None,
         location: RunLocation::At(dir.path().join("run")),
     })
     .unwrap();
@@ -173,7 +172,6 @@ fn skirt_loaded_in_the_app_evaluates_from_the_cli_with_the_same_smoothing() {
         train: few_steps(),
         model: super::small_model(),
         descriptors: DescriptorConfig::default(),
-        fabric: None,
         location: RunLocation::At(run.clone()),
     };
     let (_, result) = super::run_to_end(Trainer::spawn(setup, None).unwrap());

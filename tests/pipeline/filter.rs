@@ -25,7 +25,6 @@ fn the_gradient_filter_trains_the_pinned_skirt_with_every_effect() {
             },
             model: small_model(),
             descriptors: DescriptorConfig::default(),
-            fabric: None,
             location: RunLocation::At(dir.path().to_path_buf()),
         })
         .unwrap();

@@ -86,7 +86,6 @@ fn resume_trains_on_the_recorded_scene_and_refuses_a_different_one() {
         train: super::quick_config(),
         model: super::small_model(),
         descriptors: neural_cloth::model::DescriptorConfig::default(),
-        fabric: None,
         location: neural_cloth::train::RunLocation::Resume(run.clone()),
     })
     .err()

@@ -187,8 +187,6 @@ pub struct TrainSetup {
     pub model: ClothNetConfig,
     /// Descriptor settings.
     pub descriptors: DescriptorConfig,
-    /// Fabric; `None`: the scene's own ([`Scene::fabric`]).
-    pub fabric: Option<FabricParams>,
     /// Run folder.
     pub location: RunLocation,
 }
@@ -235,7 +233,6 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         train,
         model,
         descriptors,
-        fabric,
         location,
     } = setup;
     let fps = scene.training_fps;
@@ -245,7 +242,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         mut model,
         descriptors,
         fabric,
-    } = settings(&scene, &location, model, descriptors, fabric)?;
+    } = settings(&scene, &location, model, descriptors)?;
     // A new run scales the dynamic encoder's input to order one (see
     // `ClothNetConfig::dynamic_input_scale`); a resumed run keeps what it recorded.
     if resumed.is_none()
@@ -364,7 +361,8 @@ fn refuse_misfit(
 }
 
 /// The model, descriptor and fabric settings of a run: for a resumed run the ones it recorded
-/// (model and descriptors in `run.json`, the fabric in its scene), otherwise the given ones.
+/// (model and descriptors in `run.json`, the fabric in its scene), otherwise the given ones
+/// and the scene's fabric.
 struct Settings {
     resumed: Option<(RunDir, RunMeta)>,
     model: ClothNetConfig,
@@ -379,7 +377,6 @@ fn settings(
     location: &RunLocation,
     mut model: ClothNetConfig,
     mut descriptors: DescriptorConfig,
-    fabric: Option<FabricParams>,
 ) -> Result<Settings, TrainError> {
     let resumed = match location {
         RunLocation::Resume(dir) => Some(open_for_resume(dir, scene)?),
@@ -393,10 +390,9 @@ fn settings(
         model = meta.model.clone();
         descriptors = meta.descriptors.clone();
     }
-    let fabric = match (fabric, &resumed) {
-        (Some(f), _) => f,
-        (None, Some((run, _))) => resume::recorded_config(run)?.fabric,
-        (None, None) => scene.fabric.clone(),
+    let fabric = match &resumed {
+        Some((run, _)) => resume::recorded_config(run)?.fabric,
+        None => scene.fabric.clone(),
     };
     fabric
         .validate()

@@ -230,7 +230,6 @@ impl Prepared {
             train: train.clone(),
             model: ClothNetConfig::default(),
             descriptors: DescriptorConfig::default(),
-            fabric: None,
             location: RunLocation::At(dir.clone()),
         };
         let (session, _) = prepare(setup).map_err(|e| e.to_string())?;

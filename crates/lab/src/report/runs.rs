@@ -173,7 +173,6 @@ fn train_in(
         train,
         model,
         descriptors: DescriptorConfig::default(),
-        fabric: None,
         location: RunLocation::At(dir),
     };
     let (mut session, _) = prepare(setup)?;
@@ -281,7 +280,6 @@ pub fn interleaved_step_ms(
                 train: spec.train.clone(),
                 model: spec.model.clone(),
                 descriptors: DescriptorConfig::default(),
-                fabric: None,
                 location: RunLocation::At(dir.clone()),
             };
             let (mut session, _) = prepare(setup)?;
