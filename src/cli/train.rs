@@ -126,9 +126,13 @@ pub struct TrainArgs {
     /// default 0.01, or the run's own value with --resume; see docs/TRAINING.md)
     #[arg(long)]
     pub precondition: Option<f64>,
-    /// Filter the moving windows' gradient only (still windows keep the plain gradient)
+    /// Filter the moving windows' gradient only, still windows keeping the plain gradient
+    /// (default false: every window is filtered; see docs/TRAINING.md round 8)
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub precondition_moving_only: Option<bool>,
+    /// Filter the dynamic terms' gradient only (the static terms keep the plain gradient)
     #[arg(long)]
-    pub precondition_moving_only: bool,
+    pub precondition_dynamic_only: bool,
     /// Final stiffness scale of the gradient filter: with --steps, β moves geometrically from
     /// --precondition to it over the run (default: constant)
     #[arg(long)]
@@ -316,8 +320,11 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     if let Some(b) = args.precondition {
         train.precondition_stiffness = b;
     }
-    if args.precondition_moving_only {
-        train.precondition_moving_only = true;
+    if let Some(moving_only) = args.precondition_moving_only {
+        train.precondition_moving_only = moving_only;
+    }
+    if args.precondition_dynamic_only {
+        train.precondition_dynamic_only = true;
     }
     if let Some(b) = args.precondition_final {
         train.precondition_final_stiffness = Some(b);

@@ -11,7 +11,7 @@ use super::{quick_config, small_model, tiny_skirt};
 /// update, scores the same with and without it) and the update it makes is another.
 #[test]
 fn the_gradient_filter_trains_the_pinned_skirt_with_every_effect() {
-    let losses = |beta: f64, moving_only: bool| {
+    let losses = |beta: f64, moving_only: bool, dynamic_only: bool| {
         let dir = tempfile::tempdir().unwrap();
         let (scene, scene_config) = tiny_skirt(|e| e.friction = true);
         let (mut session, _) = prepare(TrainSetup {
@@ -20,6 +20,7 @@ fn the_gradient_filter_trains_the_pinned_skirt_with_every_effect() {
             train: TrainConfig {
                 precondition_stiffness: beta,
                 precondition_moving_only: moving_only,
+                precondition_dynamic_only: dynamic_only,
                 predrape_secs: 0.0,
                 ..quick_config()
             },
@@ -38,9 +39,10 @@ fn the_gradient_filter_trains_the_pinned_skirt_with_every_effect() {
         assert!(session.validate().unwrap().is_finite());
         steps
     };
-    let plain = losses(0.0, false);
-    let filtered = losses(0.01, false);
-    let moving = losses(0.01, true);
+    let plain = losses(0.0, false, false);
+    let filtered = losses(0.01, false, false);
+    let moving = losses(0.01, true, false);
+    let dynamic = losses(0.01, false, true);
     let relative = |a: f64, b: f64| (a - b).abs() / a.abs().max(b.abs()).max(1e-12);
     assert!(
         relative(plain[0], filtered[0]) < 1e-6,
@@ -54,6 +56,17 @@ fn the_gradient_filter_trains_the_pinned_skirt_with_every_effect() {
         relative(filtered[2], moving[2]) > 1e-6,
         "{filtered:?} {moving:?}"
     );
+    // Filtering the dynamic terms only: the same first loss, another update than both.
+    assert!(
+        relative(plain[0], dynamic[0]) < 1e-6,
+        "{plain:?} {dynamic:?}"
+    );
+    for other in [&plain, &filtered] {
+        assert!(
+            relative(other[2], dynamic[2]) > 1e-6,
+            "{other:?} {dynamic:?}"
+        );
+    }
     let bad = TrainConfig {
         precondition_stiffness: -1.0,
         ..quick_config()

@@ -76,26 +76,36 @@ pub fn precondition_schedule(config: &TrainConfig, step: u64) -> f64 {
     }
 }
 
-/// `Σ x_net · sg(F(∂total/∂x))`, F the gradient filter: its gradient with respect to the
-/// network's output `x_net` is the filtered physics gradient (the first `plain_rows` rows of
-/// `[B·K, V, 3]` keep the plain one). `x` is the detached leaf copy of `x_net` that `total`
-/// was computed from.
+/// `Σ x_net · sg(F(∂total/∂x) + ∂plain/∂x_plain)`, F the gradient filter: its gradient with
+/// respect to the network's output `x_net` is the filtered physics gradient (the first
+/// `plain_rows` rows of `[B·K, V, 3]` keep the plain one), plus, when given, the plain
+/// gradient of a second loss `plain` taken on its own detached copy `x_plain`. `x` is the
+/// detached leaf copy of `x_net` that `total` was computed from.
 pub fn filtered_surrogate(
     filter: &GradientFilter,
     x_net: &Tensor<4>,
     x: &Tensor<4>,
     total: Tensor<1>,
     plain_rows: usize,
+    plain: Option<(&Tensor<4>, Tensor<1>)>,
 ) -> Result<Tensor<1>, TrainError> {
     let dims = x.dims();
-    let grads = total.backward();
-    let mut g = match x.grad(&grads) {
-        Some(g) => g
-            .try_into_vec_as::<f32>()
-            .map_err(|e| PhysicsError::Backend(e.to_string()))?,
-        None => vec![0.0; dims.iter().product()],
+    let gradient_of = |leaf: &Tensor<4>, loss: Tensor<1>| -> Result<Vec<f32>, TrainError> {
+        let grads = loss.backward();
+        match leaf.grad(&grads) {
+            Some(g) => Ok(g
+                .try_into_vec_as::<f32>()
+                .map_err(|e| PhysicsError::Backend(e.to_string()))?),
+            None => Ok(vec![0.0; dims.iter().product()]),
+        }
     };
+    let mut g = gradient_of(x, total)?;
     filter.apply_from(&mut g, plain_rows)?;
+    if let Some((x_plain, loss)) = plain {
+        for (a, b) in g.iter_mut().zip(gradient_of(x_plain, loss)?) {
+            *a += b;
+        }
+    }
     let g = Tensor::<4>::from_data(TensorData::new(g, dims), &x_net.device());
     Ok((x_net.clone() * g).sum())
 }
