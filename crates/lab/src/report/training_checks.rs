@@ -77,7 +77,10 @@ pub fn render_training_checks(s: &mut String, checks: &[TrainingCheck]) {
          for the scenes and the history). Minutes are training wall-clock minutes on this 2-core machine \
          with the threads shown; still = frames where every joint is slower than 0.1 m/s; swing = mean \
          distance of each moving frame from its quasi-static counterpart (network at w = 0, simulator \
-         without dynamics).\n"
+         without dynamics). Caution on the t-shirt's swing since round 7: the network's w = 0 drape \
+         hangs 4-7 mm above the simulator's still drape and its dynamic branch adds that sag back \
+         for any motion (docs/TRAINING.md, round 8), so its swing (and the \"swing ≥ half\" verdicts \
+         below) include that offset; its distances to the simulator at w = 1 do not.\n"
     );
     let _ = writeln!(
         s,
