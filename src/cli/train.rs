@@ -130,9 +130,10 @@ pub struct TrainArgs {
     /// (default false: every window is filtered; see docs/TRAINING.md round 8)
     #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
     pub precondition_moving_only: Option<bool>,
-    /// Filter the dynamic terms' gradient only (the static terms keep the plain gradient)
-    #[arg(long)]
-    pub precondition_dynamic_only: bool,
+    /// Filter the dynamic terms' gradient only, the static terms keeping the plain gradient
+    /// (default false; see docs/TRAINING.md round 8)
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub precondition_dynamic_only: Option<bool>,
     /// Final stiffness scale of the gradient filter: with --steps, β moves geometrically from
     /// --precondition to it over the run (default: constant)
     #[arg(long)]
@@ -323,8 +324,8 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     if let Some(moving_only) = args.precondition_moving_only {
         train.precondition_moving_only = moving_only;
     }
-    if args.precondition_dynamic_only {
-        train.precondition_dynamic_only = true;
+    if let Some(dynamic_only) = args.precondition_dynamic_only {
+        train.precondition_dynamic_only = dynamic_only;
     }
     if let Some(b) = args.precondition_final {
         train.precondition_final_stiffness = Some(b);

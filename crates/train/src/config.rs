@@ -143,9 +143,13 @@ pub struct TrainConfig {
     /// `None` (default) keeps it constant. In (0, 100]; measured not better than a constant
     /// 0.01 (docs/TRAINING.md round 7).
     pub precondition_final_stiffness: Option<f64>,
-    /// The gradient filter (when `precondition_stiffness > 0`) acts on the gradient of the
-    /// dynamic terms (inertia, friction) only; the static terms' gradient stays plain.
-    /// Default false.
+    /// The gradient filter (when `precondition_stiffness > 0` and the scene has the dynamics
+    /// effect) acts on the gradient of the dynamic terms (inertia, friction) only; the static
+    /// terms' gradient stays plain (with `precondition_moving_only` too, the still windows'
+    /// dynamic gradient also stays plain). Default false: on the t-shirt with the twirl (seeds
+    /// 1 and 9) it keeps the `w = 0` drape within 1.1-1.7 mm of the simulator's height where
+    /// the full filter lifts it 4.8-5.6 mm, and loses most of the swing (run 3.8-4.7 mm of the
+    /// simulator's 12.0; docs/TRAINING.md round 8).
     pub precondition_dynamic_only: bool,
 }
 

@@ -29,6 +29,8 @@ use neural_cloth_physics::{
 };
 
 mod forward;
+mod step_losses;
+use step_losses::StepLosses;
 
 use super::TrainError;
 use super::adam::TrainOptimiser;
@@ -389,44 +391,13 @@ impl Session for NeuralSession {
             Some(_) => x_net.clone().detach().require_grad(),
             None => x_net.clone(),
         };
-        // With `precondition_dynamic_only`, the static losses get a copy of their own, whose
-        // gradient is not filtered.
-        let x_static = match filter {
-            Some(_) if self.config.precondition_dynamic_only => {
-                Some(x_net.clone().detach().require_grad())
-            }
-            _ => None,
-        };
-        // Every loss frame k in 2..K, stacked frame by frame: its static losses, and its
-        // inertia from the network's own two previous frames.
-        let x_t = stack_frames(&x, 2, predicted, b);
-        let x_static_t = x_static.as_ref().map(|x| stack_frames(x, 2, predicted, b));
-        let (contacts, losses) = self.static_losses(
-            &self.train,
-            &batch,
-            &blended,
-            2,
-            x_static_t.as_ref().unwrap_or(&x_t),
-        )?;
-        let static_total = losses
-            .total()
-            .unwrap_or_else(|| Tensor::zeros([1], &self.device));
-        let (dynamic, friction) =
-            self.dynamic_losses(&x, &x_t, &batch, contacts.as_ref(), b - augment)?;
-        let (mut total, mut plain) = match &x_static {
-            Some(x_static) => (
-                Tensor::zeros([1], &self.device),
-                Some((x_static, static_total)),
-            ),
-            None => (static_total, None),
-        };
-        for term in dynamic {
-            total = total + term;
-        }
-        let loss = total.clone().into_scalar::<f64>()
-            + plain
-                .as_ref()
-                .map_or(0.0, |(_, t)| t.clone().into_scalar::<f64>());
+        let StepLosses {
+            total,
+            plain,
+            contacts,
+            friction,
+            loss,
+        } = self.step_losses(&x_net, &x, filter.is_some(), &batch, &blended, b - augment)?;
         let grads = match filter {
             None => total.backward(),
             Some(filter) => {
@@ -436,7 +407,8 @@ impl Session for NeuralSession {
                 } else {
                     0
                 };
-                filtered_surrogate(&filter, &x_net, &x, total, plain_rows, plain.take())?.backward()
+                let plain = plain.as_ref().map(|(x_static, t)| (x_static, t.clone()));
+                filtered_surrogate(&filter, &x_net, &x, total, plain_rows, plain)?.backward()
             }
         };
         let grads = GradientsParams::from_grads(grads, &self.model);
