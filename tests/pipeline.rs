@@ -246,6 +246,8 @@ fn checkpoints_reload_identically_and_resume_continues() {
     assert_eq!(older.step, 3);
     assert_ne!(predict(&older.artifact), predict(&snapshot));
     assert!(load_trained(&run.join("checkpoints").join("step-00000005")).is_err());
+    // Neither a run nor a checkpoint folder: refused, not the run's newest checkpoint.
+    assert!(load_trained(&run.join("checkpoints")).is_err());
 
     // Resume: the step count and the metric history continue.
     let resumed = TrainConfig {

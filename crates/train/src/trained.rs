@@ -84,19 +84,24 @@ impl TrainedModel {
 /// back to the previous complete one ([`TrainedModel::warnings`] says so); a run of which no
 /// checkpoint loads, or a named checkpoint that does not load, is an error naming the file.
 pub fn load_trained(run_dir: &Path) -> Result<TrainedModel, TrainError> {
-    let (root, named_step) = if run_dir.join("run.json").is_file() {
-        (run_dir.to_path_buf(), None)
+    // A checkpoint folder RUN/checkpoints/step-N names its step; any other folder is opened
+    // as a run (and refused with the run folder's own message when it is not one).
+    let checkpoint = if run_dir.join("run.json").is_file() {
+        None
     } else {
-        // A checkpoint folder: RUN/checkpoints/step-N.
-        let step = run_dir
-            .file_name()
-            .and_then(|n| crate::checkpoint::step_of(&n.to_string_lossy()));
-        let root = run_dir
+        let in_checkpoints = run_dir
             .parent()
-            .and_then(|p| p.parent())
-            .map(Path::to_path_buf)
-            .unwrap_or_else(|| run_dir.to_path_buf());
-        (root, step)
+            .and_then(Path::file_name)
+            .is_some_and(|name| name == "checkpoints");
+        run_dir
+            .file_name()
+            .and_then(|n| crate::checkpoint::step_of(&n.to_string_lossy()))
+            .filter(|_| in_checkpoints)
+            .zip(run_dir.parent().and_then(Path::parent))
+    };
+    let (root, named_step) = match checkpoint {
+        Some((step, root)) => (root.to_path_buf(), Some(step)),
+        None => (run_dir.to_path_buf(), None),
     };
     let run = RunDir::open(&root)?;
     let meta = run.meta()?;
