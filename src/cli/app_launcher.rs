@@ -25,7 +25,6 @@ impl TrainerLauncher for RealLauncher {
             train: request.config,
             model: ClothNetConfig::default(),
             descriptors: DescriptorConfig::default(),
-            // The scene's own fabric.
             location: RunLocation::NewUnder(request.run_dir),
         };
         Ok(Trainer::spawn(setup, Some(notify))?)

@@ -4,7 +4,8 @@
 //! Every curve is built for the left side and mirrored onto the right, so the motions are
 //! left/right consistent. Walk, run and spin ease in and out over their first and last
 //! 0.6 s; idle and turn start at rest with zero velocity; jump repeats a 1.8 s
-//! crouch-takeoff-flight-landing cycle that starts and ends at rest.
+//! crouch-takeoff-flight-landing cycle that starts and ends at rest, and twirl a 7.6 s cycle
+//! that does too (takes of other lengths end mid-cycle).
 
 use std::f32::consts::{PI, TAU};
 
@@ -402,9 +403,9 @@ const TWIRL_KEYS: [(f32, f32, f32); 10] = [
     (7.6, 0.0, 0.0),
 ];
 
-/// Root yaw (rad) of the twirl at `t`: the integral of its yaw rate, which is a Hermite
-/// curve through the keys with zero slope at each key, so the integral is closed form
-/// per segment.
+/// Root yaw (rad) and yaw rate (rad/s) of the twirl at `t` in `0..=7.6` s: the yaw is the
+/// integral of the rate, which eases (smoothstep) from key to key, so the integral is closed
+/// form per segment.
 fn twirl_yaw(t: f32) -> (f32, f32) {
     let mut yaw = 0.0;
     for w in TWIRL_KEYS.windows(2) {
