@@ -47,6 +47,15 @@ pub enum ProjectError {
         /// The file.
         path: PathBuf,
     },
+    /// The project (or the recent-files list) cannot be put into text to be written.
+    #[error("cannot write the project: {reason}: {}", path.display())]
+    Encode {
+        /// What could not be encoded.
+        #[source]
+        reason: InvalidProject,
+        /// The file.
+        path: PathBuf,
+    },
     /// The file is not a valid project.
     #[error("invalid project file: {reason}: {}", path.display())]
     Parse {
@@ -225,7 +234,7 @@ impl ProjectFile {
                 &base,
             )
         });
-        let text = copy.to_toml().map_err(|reason| ProjectError::Parse {
+        let text = copy.to_toml().map_err(|reason| ProjectError::Encode {
             reason,
             path: path.to_path_buf(),
         })?;
@@ -360,7 +369,7 @@ impl RecentFiles {
         match &self.store {
             Some(store) => {
                 let json =
-                    serde_json::to_vec_pretty(&self.paths).map_err(|e| ProjectError::Parse {
+                    serde_json::to_vec_pretty(&self.paths).map_err(|e| ProjectError::Encode {
                         reason: e.into(),
                         path: store.clone(),
                     })?;
