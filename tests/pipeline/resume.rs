@@ -97,6 +97,25 @@ fn resume_trains_on_the_recorded_scene_and_refuses_a_different_one() {
         "{refused}"
     );
     assert!(snapshot(&run) == before, "the run changed");
+    // The effects' one home is the run's scene.toml: a resume with other effects is refused.
+    let (mut scene, scene_config) = super::tiny();
+    scene.effects.bending = !scene.effects.bending;
+    let refused = neural_cloth::train::prepare(neural_cloth::train::TrainSetup {
+        scene,
+        scene_config,
+        train: super::quick_config(),
+        model: super::small_model(),
+        descriptors: neural_cloth::model::DescriptorConfig::default(),
+        location: neural_cloth::train::RunLocation::Resume(run.clone()),
+    })
+    .err()
+    .expect("a scene with other effects is refused");
+    let text = refused.to_string();
+    assert!(
+        text.contains("other effects than the scene's (bending"),
+        "{text}"
+    );
+    assert!(snapshot(&run) == before, "the run changed");
 }
 
 /// Review of issue 14: a run trained at another rate resumes with the command line that

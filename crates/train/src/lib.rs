@@ -45,7 +45,7 @@ use burn::tensor::{Device, DeviceKind};
 use neural_cloth_core::scene::Scene;
 use neural_cloth_core::scene::config::{SceneConfig, Split};
 use neural_cloth_model::{ClothNetConfig, DescriptorConfig, EncoderKind, GarmentLbs};
-use neural_cloth_physics::{FabricParams, PhysicsTerms};
+use neural_cloth_physics::{Effects, FabricParams, PhysicsTerms};
 
 use data::Dataset;
 use handle::LoopConfig;
@@ -522,6 +522,21 @@ fn open_for_resume(dir: &Path, scene: &Scene) -> Result<(RunDir, RunMeta), Train
             run.root.display()
         )));
     }
+    // The effects' one home is the run's scene.toml: a resume goes on with the same ones.
+    let recorded = resume::recorded_config(&run)?.effects;
+    if recorded != scene.effects {
+        let changed: Vec<String> = effect_flags(&recorded)
+            .into_iter()
+            .zip(effect_flags(&scene.effects))
+            .filter(|(a, b)| a.1 != b.1)
+            .map(|((name, was), _)| format!("{name} {}", if was { "on" } else { "off" }))
+            .collect();
+        return Err(TrainError::Checkpoint(format!(
+            "the run was trained with other effects than the scene's ({} in the run): {}",
+            changed.join(", "),
+            run.root.display()
+        )));
+    }
     Ok((run, meta))
 }
 
@@ -556,4 +571,16 @@ fn resume_state(
         ));
     }
     Ok((step, history))
+}
+
+/// Each effect's name and whether it is on.
+fn effect_flags(effects: &Effects) -> [(&'static str, bool); 6] {
+    [
+        ("gravity", effects.gravity),
+        ("bending", effects.bending),
+        ("collision", effects.collision),
+        ("dynamics", effects.dynamics),
+        ("pinning", effects.pinning),
+        ("friction", effects.friction),
+    ]
 }
