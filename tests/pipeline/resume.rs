@@ -78,39 +78,29 @@ fn resume_trains_on_the_recorded_scene_and_refuses_a_different_one() {
         "{log}"
     );
     assert!(snapshot(&run) == before, "the run changed");
-    let (mut scene, scene_config) = super::tiny();
-    scene.training_fps = 60.0;
-    let refused = neural_cloth::train::prepare(neural_cloth::train::TrainSetup {
-        scene,
-        scene_config,
-        train: super::quick_config(),
-        model: super::small_model(),
-        descriptors: neural_cloth::model::DescriptorConfig::default(),
-        location: neural_cloth::train::RunLocation::Resume(run.clone()),
-    })
-    .err()
-    .expect("a scene at another rate is refused");
+    let refused = |edit: &dyn Fn(&mut neural_cloth::scene::Scene)| {
+        let (mut scene, scene_config) = super::tiny();
+        edit(&mut scene);
+        neural_cloth::train::prepare(neural_cloth::train::TrainSetup {
+            scene,
+            scene_config,
+            train: super::quick_config(),
+            model: super::small_model(),
+            descriptors: neural_cloth::model::DescriptorConfig::default(),
+            location: neural_cloth::train::RunLocation::Resume(run.clone()),
+        })
+        .err()
+        .expect("refused")
+        .to_string()
+    };
+    let text = refused(&|scene| scene.training_fps = 60.0);
     assert!(
-        refused
-            .to_string()
-            .contains("trained at 30 frames per second, the scene is at 60"),
-        "{refused}"
+        text.contains("trained at 30 frames per second, the scene is at 60"),
+        "{text}"
     );
     assert!(snapshot(&run) == before, "the run changed");
     // The effects' one home is the run's scene.toml: a resume with other effects is refused.
-    let (mut scene, scene_config) = super::tiny();
-    scene.effects.bending = !scene.effects.bending;
-    let refused = neural_cloth::train::prepare(neural_cloth::train::TrainSetup {
-        scene,
-        scene_config,
-        train: super::quick_config(),
-        model: super::small_model(),
-        descriptors: neural_cloth::model::DescriptorConfig::default(),
-        location: neural_cloth::train::RunLocation::Resume(run.clone()),
-    })
-    .err()
-    .expect("a scene with other effects is refused");
-    let text = refused.to_string();
+    let text = refused(&|scene| scene.effects.bending = !scene.effects.bending);
     assert!(
         text.contains("other effects than the scene's (bending"),
         "{text}"

@@ -87,7 +87,7 @@ pub fn filtered_surrogate(
     x: &Tensor<4>,
     total: Tensor<1>,
     plain_rows: usize,
-    plain: Option<(&Tensor<4>, Tensor<1>)>,
+    plain: Option<(Tensor<4>, Tensor<1>)>,
 ) -> Result<Tensor<1>, TrainError> {
     let dims = x.dims();
     let gradient_of = |leaf: &Tensor<4>, loss: Tensor<1>| -> Result<Vec<f32>, TrainError> {
@@ -102,7 +102,7 @@ pub fn filtered_surrogate(
     let mut g = gradient_of(x, total)?;
     filter.apply_from(&mut g, plain_rows)?;
     if let Some((x_plain, loss)) = plain {
-        for (a, b) in g.iter_mut().zip(gradient_of(x_plain, loss)?) {
+        for (a, b) in g.iter_mut().zip(gradient_of(&x_plain, loss)?) {
             *a += b;
         }
     }

@@ -378,22 +378,22 @@ fn settings(
     mut model: ClothNetConfig,
     mut descriptors: DescriptorConfig,
 ) -> Result<Settings, TrainError> {
-    let resumed = match location {
-        RunLocation::Resume(dir) => Some(open_for_resume(dir, scene)?),
+    let (resumed, recorded_fabric) = match location {
+        RunLocation::Resume(dir) => {
+            let (run, meta, fabric) = open_for_resume(dir, scene)?;
+            (Some((run, meta)), Some(fabric))
+        }
         RunLocation::At(dir) => {
             refuse_existing_run(dir)?;
-            None
+            (None, None)
         }
-        RunLocation::NewUnder(_) => None,
+        RunLocation::NewUnder(_) => (None, None),
     };
     if let Some((_, meta)) = &resumed {
         model = meta.model.clone();
         descriptors = meta.descriptors.clone();
     }
-    let fabric = match &resumed {
-        Some((run, _)) => resume::recorded_config(run)?.fabric,
-        None => scene.fabric.clone(),
-    };
+    let fabric = recorded_fabric.unwrap_or_else(|| scene.fabric.clone());
     fabric
         .validate()
         .map_err(neural_cloth_physics::PhysicsError::from)?;
@@ -475,9 +475,12 @@ fn refuse_existing_run(dir: &Path) -> Result<(), TrainError> {
     Ok(())
 }
 
-/// The run at `dir` and its description, refused when `scene` has another garment, avatar or
-/// training rate.
-fn open_for_resume(dir: &Path, scene: &Scene) -> Result<(RunDir, RunMeta), TrainError> {
+/// The run at `dir`, its description and the fabric its scene recorded; refused when `scene`
+/// has another garment, avatar, training rate or effects.
+fn open_for_resume(
+    dir: &Path,
+    scene: &Scene,
+) -> Result<(RunDir, RunMeta, FabricParams), TrainError> {
     let run = RunDir::open(dir)?;
     let meta = run.meta()?;
     if meta.training_fps != scene.training_fps {
@@ -523,9 +526,9 @@ fn open_for_resume(dir: &Path, scene: &Scene) -> Result<(RunDir, RunMeta), Train
         )));
     }
     // The effects' one home is the run's scene.toml: a resume goes on with the same ones.
-    let recorded = resume::recorded_config(&run)?.effects;
-    if recorded != scene.effects {
-        let changed: Vec<String> = effect_flags(&recorded)
+    let recorded = resume::recorded_config(&run)?;
+    if recorded.effects != scene.effects {
+        let changed: Vec<String> = effect_flags(&recorded.effects)
             .into_iter()
             .zip(effect_flags(&scene.effects))
             .filter(|(a, b)| a.1 != b.1)
@@ -537,7 +540,7 @@ fn open_for_resume(dir: &Path, scene: &Scene) -> Result<(RunDir, RunMeta), Train
             run.root.display()
         )));
     }
-    Ok((run, meta))
+    Ok((run, meta, recorded.fabric))
 }
 
 /// Loads the newest checkpoint of the session's run that loads and the metric history up to

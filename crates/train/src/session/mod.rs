@@ -407,7 +407,6 @@ impl Session for NeuralSession {
                 } else {
                     0
                 };
-                let plain = plain.as_ref().map(|(x_static, t)| (x_static, t.clone()));
                 filtered_surrogate(&filter, &x_net, &x, total, plain_rows, plain)?.backward()
             }
         };
