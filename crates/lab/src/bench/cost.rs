@@ -18,7 +18,9 @@ use neural_cloth_physics::fused::Kernel;
 use neural_cloth_physics::rest::GarmentRest;
 use neural_cloth_physics::shapes::{tube, uv_sphere};
 use neural_cloth_physics::tensors::read_f64;
-use neural_cloth_physics::{ClothModel, Effects, FabricParams, PhysicsError, PhysicsTerms, Term};
+use neural_cloth_physics::{
+    ClothModel, Effects, FabricParams, GradientFilter, PhysicsError, PhysicsTerms, Term,
+};
 
 /// A loss on positions `[B, V, 3]`, as timed.
 type Loss<'a> = &'a dyn Fn(&Tensor<3>) -> Result<Tensor<1>, PhysicsError>;
@@ -392,6 +394,29 @@ pub fn measure_term_costs(
         &|x| sum_terms(reference_no_collision.static_energies(x, None)?),
         Some(&|x| sum_terms(no_collision.static_energies(x, None)?)),
     )?;
+    // The training gradient filter on a batch of gradients (host data, as the trainer hands
+    // it over): reference = one solve per coordinate, fused = the three coordinates at once.
+    let filter = GradientFilter::new(&rest, &fabric, 1.0 / 30.0, 0.01)?;
+    let gradient: Vec<f32> = (0..flat.len()).map(|i| (i as f32 * 0.37).sin()).collect();
+    let time_host =
+        |f: &dyn Fn(&mut [f32]) -> Result<(), PhysicsError>| -> Result<f64, PhysicsError> {
+            let mut samples = Vec::with_capacity(repeats);
+            for k in 0..=repeats {
+                let mut g = gradient.clone();
+                let start = Instant::now();
+                f(&mut g)?;
+                if k > 0 {
+                    samples.push(start.elapsed().as_secs_f64() * 1e3);
+                }
+            }
+            samples.sort_by(f64::total_cmp);
+            Ok(samples[samples.len() / 2])
+        };
+    rows_out.push((
+        "gradient filter β = 0.01 (one solve per coordinate → three at once)".into(),
+        time_host(&|g| filter.apply_per_coordinate(g))?,
+        Some(time_host(&|g| filter.apply(g))?),
+    ));
     let device_name = format!("{:?}", device.clone().without_autodiff());
     Ok(CostReport {
         dof: 3 * v,

@@ -337,20 +337,10 @@ impl Stepper {
                 Arc::new(EnvelopeCholesky::factor(v, &t)?)
             };
             let apply = |r: &[f64]| -> Vec<f64> {
-                let mut out = r.to_vec();
-                let mut column = vec![0.0; v];
-                for c in 0..3 {
-                    column
-                        .iter_mut()
-                        .enumerate()
-                        .for_each(|(i, x)| *x = r[3 * i + c]);
-                    metric.solve_in_place(&mut column);
-                    column
-                        .iter()
-                        .enumerate()
-                        .for_each(|(i, x)| out[3 * i + c] = *x);
-                }
-                out
+                let mut columns: Vec<[f64; 3]> =
+                    r.chunks_exact(3).map(|x| [x[0], x[1], x[2]]).collect();
+                metric.solve3_in_place(&mut columns);
+                columns.into_iter().flatten().collect()
             };
             let h0 = InitialMetric::Operator(&apply);
             let budget =
