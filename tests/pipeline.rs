@@ -1038,8 +1038,16 @@ pinning = true
             m.metrics.simulator.strain,
             m.metrics.network.gravity,
             m.metrics.simulator.gravity,
+            m.metrics.network.loss,
+            m.metrics.simulator.loss,
         ];
         assert!(numbers.iter().all(|v| v.is_finite()), "{report:?}");
+        // The training objective is reported on both sides (it was left 0): at least the
+        // gravity potential of the frames, which is positive above the origin.
+        for side in [&m.metrics.network, &m.metrics.simulator] {
+            assert!(side.loss != 0.0 && side.gravity > 0.0, "{side:?}");
+            assert!(side.loss >= side.gravity - 1e-9, "{side:?}");
+        }
         // Both stay on the body: centimetres apart, not metres.
         assert!(
             s.all.mean_mm > 0.0 && s.all.mean_mm < 500.0 && s.all.p95_mm >= s.all.mean_mm,

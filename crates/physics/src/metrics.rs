@@ -66,6 +66,12 @@ pub struct ClothMetrics {
     /// over the skin).
     #[serde(default)]
     pub slip_m: Option<f64>,
+    /// The static objective the trainer minimises for this frame: the sum of the scene's
+    /// static energies (cloth, bending, collision, gravity, as enabled), joules, when the
+    /// collision effect is off or `contacts` were given; comparing it between two drapes of
+    /// the same pose says which one is the lower minimum of the training loss.
+    #[serde(default)]
+    pub static_energy_j: Option<f64>,
 }
 
 /// Two previous frames and the time step, for the inertia metric.
@@ -143,6 +149,14 @@ impl PhysicsTerms {
             if let Some(frac) = collision::inside_fraction(&x, contacts, rt, colliding) {
                 m.collision_pct = Some(100.0 * mean(frac)?);
             }
+        }
+        let contacts_fit = contacts.filter(|c| c.points.dims() == x.dims());
+        if !self.effects().collision || contacts_fit.is_some() {
+            let mut total = 0.0;
+            for (_, energy) in self.static_energies(&x, contacts_fit)? {
+                total += mean(energy)?;
+            }
+            m.static_energy_j = Some(total);
         }
         let paper = paper_metrics::paper_metrics(rest, &read_f32(x.clone())?, b)?;
         m.paper_bending_rad = paper.bending_rad;
@@ -311,6 +325,41 @@ mod tests {
         let refs: Vec<&[Vec3]> = frames.iter().map(|f| f.as_slice()).collect();
         let x = positions_tensor(&refs, terms.device(), terms.dtype()).unwrap();
         terms.metrics(&x, None, None).unwrap()
+    }
+
+    #[test]
+    fn the_static_energy_is_the_trainers_static_objective() {
+        let (mesh, terms) = sheet_terms(0.0);
+        let frames: Vec<Vec<Vec3>> = (0..2).map(|s| jitter(&mesh.positions, 0.01, s)).collect();
+        let refs: Vec<&[Vec3]> = frames.iter().map(|f| f.as_slice()).collect();
+        let x = positions_tensor(&refs, terms.device(), terms.dtype()).unwrap();
+        let objective: f64 = terms
+            .static_losses_with(&x, None)
+            .unwrap()
+            .terms
+            .into_iter()
+            .map(|(_, t)| read_f64(t).unwrap()[0])
+            .sum();
+        let m = terms.metrics(&x, None, None).unwrap();
+        let energy = m.static_energy_j.unwrap();
+        assert!(
+            (energy - objective).abs() < 1e-6 * objective.abs().max(1.0),
+            "{energy} vs {objective}"
+        );
+        // Lifting the sheet raises it by the gravity potential alone.
+        let lifted: Vec<Vec<Vec3>> = frames
+            .iter()
+            .map(|f| f.iter().map(|p| p + Vec3::new(0.0, 0.01, 0.0)).collect())
+            .collect();
+        let higher = metrics_of(&terms, &lifted).static_energy_j.unwrap();
+        let mass = terms.rest().total_mass_kg;
+        let g_y = f64::from(FabricParams::default().gravity_m_per_s2[1]);
+        let expected = -mass * g_y * 0.01;
+        assert!(expected > 0.0);
+        assert!(
+            (higher - energy - expected).abs() < 1e-3 * expected,
+            "{higher} vs {energy}"
+        );
     }
 
     #[test]

@@ -253,7 +253,9 @@ pub struct CompareReport {
     pub motions: Vec<MotionComparison>,
 }
 
-/// Mean §4.2 metrics of `frames` (inertia averaged from the third frame on, as `eval`).
+/// Mean §4.2 metrics of `frames` (inertia averaged from the third frame on, as `eval`), with
+/// `loss` the mean training objective of the frames: static energies, plus inertia and
+/// friction from the third frame on.
 pub fn sequence_mean_metrics(
     terms: &PhysicsTerms,
     frames: &[Vec<Vec3>],
@@ -264,7 +266,12 @@ pub fn sequence_mean_metrics(
     let per_frame = sequence_metrics(terms, frames, bodies, 1.0 / fps)?;
     let records: Vec<MetricRecord> = per_frame
         .iter()
-        .map(|m| MetricRecord::from_metrics(cloth_model, m, 0.0))
+        .map(|m| {
+            let objective = m.static_energy_j.unwrap_or(0.0)
+                + m.inertia_j.unwrap_or(0.0)
+                + m.friction_j.unwrap_or(0.0);
+            MetricRecord::from_metrics(cloth_model, m, objective)
+        })
         .collect();
     let mut mean = MetricRecord::mean(&records);
     let with_inertia: Vec<f64> = per_frame.iter().filter_map(|m| m.inertia_j).collect();
