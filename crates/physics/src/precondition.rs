@@ -82,8 +82,8 @@ impl GradientFilter {
         self.apply_from(grad, 0)
     }
 
-    /// [`Self::apply`] to rows `first..` only; the rows before keep the plain gradient.
-    pub fn apply_from(&self, grad: &mut [f32], first: usize) -> Result<(), PhysicsError> {
+    /// The vertex count, after checking that `grad` holds whole rows of it.
+    fn rows_of(&self, grad: &[f32]) -> Result<usize, PhysicsError> {
         let v = self.vertex_count();
         if v == 0 || !grad.len().is_multiple_of(v * 3) {
             return Err(PhysicsError::ShapeMismatch {
@@ -92,6 +92,12 @@ impl GradientFilter {
                 found: format!("{} values", grad.len()),
             });
         }
+        Ok(v)
+    }
+
+    /// [`Self::apply`] to rows `first..` only; the rows before keep the plain gradient.
+    pub fn apply_from(&self, grad: &mut [f32], first: usize) -> Result<(), PhysicsError> {
+        let v = self.rows_of(grad)?;
         let skip = (first * v * 3).min(grad.len());
         grad[skip..].par_chunks_mut(v * 3).for_each(|row| {
             if row.iter().all(|g| *g == 0.0) {
@@ -114,14 +120,7 @@ impl GradientFilter {
     /// [`Self::apply`] solving one coordinate at a time (the path before the three-at-once
     /// solve, kept as the benchmark's reference): the same results to the last bit.
     pub fn apply_per_coordinate(&self, grad: &mut [f32]) -> Result<(), PhysicsError> {
-        let v = self.vertex_count();
-        if v == 0 || !grad.len().is_multiple_of(v * 3) {
-            return Err(PhysicsError::ShapeMismatch {
-                what: "gradient to filter".into(),
-                expected: format!("a multiple of {} values", v * 3),
-                found: format!("{} values", grad.len()),
-            });
-        }
+        let v = self.rows_of(grad)?;
         grad.par_chunks_mut(v * 3).for_each(|row| {
             if row.iter().all(|g| *g == 0.0) {
                 return;
