@@ -67,9 +67,10 @@ pub struct ClothMetrics {
     #[serde(default)]
     pub slip_m: Option<f64>,
     /// The static objective the trainer minimises for this frame: the sum of the scene's
-    /// static energies (cloth, bending, collision, gravity, as enabled), joules, when the
-    /// collision effect is off or `contacts` were given; comparing it between two drapes of
-    /// the same pose says which one is the lower minimum of the training loss.
+    /// static energies (cloth, bending, collision, gravity, as enabled), joules; filled by
+    /// [`sequence_metrics`] (when collision is off or bodies were given), not by
+    /// [`PhysicsTerms::metrics`]. Comparing it between two drapes of the same pose says which
+    /// one is the lower minimum of the training loss.
     #[serde(default)]
     pub static_energy_j: Option<f64>,
 }
@@ -150,14 +151,6 @@ impl PhysicsTerms {
                 m.collision_pct = Some(100.0 * mean(frac)?);
             }
         }
-        let contacts_fit = contacts.filter(|c| c.points.dims() == x.dims());
-        if !self.effects().collision || contacts_fit.is_some() {
-            let mut total = 0.0;
-            for (_, energy) in self.static_energies(&x, contacts_fit)? {
-                total += mean(energy)?;
-            }
-            m.static_energy_j = Some(total);
-        }
         let paper = paper_metrics::paper_metrics(rest, &read_f32(x.clone())?, b)?;
         m.paper_bending_rad = paper.bending_rad;
         m.paper_stretch = paper.stretch;
@@ -182,6 +175,27 @@ impl PhysicsTerms {
             }
         }
         Ok(m)
+    }
+
+    /// The static objective of the batch `x` (`[B, V, 3]`), batch mean: the sum of the
+    /// scene's static energies as the trainer takes them, joules; `None` when collision is on
+    /// and `contacts` of the same shape are missing. Not part of [`Self::metrics`], which a
+    /// training step calls: [`sequence_metrics`] fills [`ClothMetrics::static_energy_j`].
+    pub fn static_objective_j(
+        &self,
+        x: &Tensor<3>,
+        contacts: Option<&Contacts>,
+    ) -> Result<Option<f64>, PhysicsError> {
+        let b = self.tensors().batch_of(x)?;
+        let contacts = contacts.filter(|c| c.points.dims() == x.dims());
+        if self.effects().collision && contacts.is_none() {
+            return Ok(None);
+        }
+        let mut total = 0.0;
+        for (_, energy) in self.static_energies(&x.clone().detach(), contacts)? {
+            total += read_f64(energy)?.iter().sum::<f64>() / b as f64;
+        }
+        Ok(Some(total))
     }
 }
 
@@ -253,7 +267,9 @@ pub fn sequence_metrics(
             } else {
                 None
             };
-            out.push(terms.metrics(&xk, ck.as_ref(), history.as_ref())?);
+            let mut m = terms.metrics(&xk, ck.as_ref(), history.as_ref())?;
+            m.static_energy_j = terms.static_objective_j(&xk, ck.as_ref())?;
+            out.push(m);
         }
     }
     Ok(out)
@@ -340,8 +356,22 @@ mod tests {
             .into_iter()
             .map(|(_, t)| read_f64(t).unwrap()[0])
             .sum();
-        let m = terms.metrics(&x, None, None).unwrap();
-        let energy = m.static_energy_j.unwrap();
+        let energy = terms.static_objective_j(&x, None).unwrap().unwrap();
+        // sequence_metrics fills it per frame; a training step's metrics do not.
+        let per_frame = sequence_metrics(&terms, &frames, None, 1.0 / 30.0).unwrap();
+        let mean_of_frames = per_frame
+            .iter()
+            .map(|m| m.static_energy_j.unwrap())
+            .sum::<f64>()
+            / 2.0;
+        assert!((mean_of_frames - energy).abs() < 1e-9 * energy.abs().max(1.0));
+        assert!(
+            terms
+                .metrics(&x, None, None)
+                .unwrap()
+                .static_energy_j
+                .is_none()
+        );
         assert!(
             (energy - objective).abs() < 1e-6 * objective.abs().max(1.0),
             "{energy} vs {objective}"
@@ -351,7 +381,9 @@ mod tests {
             .iter()
             .map(|f| f.iter().map(|p| p + Vec3::new(0.0, 0.01, 0.0)).collect())
             .collect();
-        let higher = metrics_of(&terms, &lifted).static_energy_j.unwrap();
+        let refs: Vec<&[Vec3]> = lifted.iter().map(|f| f.as_slice()).collect();
+        let x = positions_tensor(&refs, terms.device(), terms.dtype()).unwrap();
+        let higher = terms.static_objective_j(&x, None).unwrap().unwrap();
         let mass = terms.rest().total_mass_kg;
         let g_y = f64::from(FabricParams::default().gravity_m_per_s2[1]);
         let expected = -mass * g_y * 0.01;
