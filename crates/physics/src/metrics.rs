@@ -186,16 +186,17 @@ impl PhysicsTerms {
         x: &Tensor<3>,
         contacts: Option<&Contacts>,
     ) -> Result<Option<f64>, PhysicsError> {
-        let b = self.tensors().batch_of(x)?;
         let contacts = contacts.filter(|c| c.points.dims() == x.dims());
         if self.effects().collision && contacts.is_none() {
             return Ok(None);
         }
-        let mut total = 0.0;
-        for (_, energy) in self.static_energies(&x.clone().detach(), contacts)? {
-            total += read_f64(energy)?.iter().sum::<f64>() / b as f64;
+        match self
+            .static_losses_with(&x.clone().detach(), contacts)?
+            .total()
+        {
+            Some(total) => Ok(read_f64(total)?.first().copied()),
+            None => Ok(Some(0.0)),
         }
-        Ok(Some(total))
     }
 }
 
@@ -349,12 +350,12 @@ mod tests {
         let frames: Vec<Vec<Vec3>> = (0..2).map(|s| jitter(&mesh.positions, 0.01, s)).collect();
         let refs: Vec<&[Vec3]> = frames.iter().map(|f| f.as_slice()).collect();
         let x = positions_tensor(&refs, terms.device(), terms.dtype()).unwrap();
+        // The sum of every static energy's batch mean, read term by term.
         let objective: f64 = terms
-            .static_losses_with(&x, None)
+            .static_energies(&x, None)
             .unwrap()
-            .terms
             .into_iter()
-            .map(|(_, t)| read_f64(t).unwrap()[0])
+            .map(|(_, t)| read_f64(t).unwrap().iter().sum::<f64>() / 2.0)
             .sum();
         let energy = terms.static_objective_j(&x, None).unwrap().unwrap();
         // sequence_metrics fills it per frame; a training step's metrics do not.
