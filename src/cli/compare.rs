@@ -221,8 +221,9 @@ fn motion_table(s: &mut String, m: &MotionComparison) {
         "  {:<28}{:>12.3}{:>12.3}",
         "slip over the body, mm/frame", net.slip_mm, sim.slip_mm
     );
-    // The training objective on both sides: the simulator's lower value says the network's
-    // frames are not a minimum of the loss it was trained on.
+    // The training objective on both sides (pinning left out; inertia from each side's own
+    // history): on still poses, the simulator's lower value says the network's frames are not
+    // a minimum of the loss it was trained on.
     let _ = writeln!(
         s,
         "  {:<28}{:>12.5}{:>12.5}",

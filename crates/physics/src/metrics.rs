@@ -70,7 +70,8 @@ pub struct ClothMetrics {
     /// static energies (cloth, bending, collision, gravity, as enabled), joules; filled by
     /// [`sequence_metrics`] (when collision is off or bodies were given), not by
     /// [`PhysicsTerms::metrics`]. Comparing it between two drapes of the same pose says which
-    /// one is the lower minimum of the training loss.
+    /// one is the lower minimum of the training loss. It leaves out pinning (its targets are
+    /// the skinned template, not known here).
     #[serde(default)]
     pub static_energy_j: Option<f64>,
 }

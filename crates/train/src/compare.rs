@@ -254,8 +254,9 @@ pub struct CompareReport {
 }
 
 /// Mean §4.2 metrics of `frames` (inertia averaged from the third frame on, as `eval`), with
-/// `loss` the mean training objective of the frames: static energies, plus inertia and
-/// friction from the third frame on.
+/// `loss` the mean training objective of the frames: static energies (pinning left out),
+/// plus inertia and friction from the third frame on, each side from its own previous
+/// frames; so the two sides' values compare as minima on still poses only.
 pub fn sequence_mean_metrics(
     terms: &PhysicsTerms,
     frames: &[Vec<Vec3>],
