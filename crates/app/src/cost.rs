@@ -11,7 +11,7 @@ use neural_cloth_core::scene::Scene;
 use neural_cloth_lab::report::Progress;
 use neural_cloth_lab::report::accuracy::{CostOptions, CostResult, run_cost_experiment};
 
-use super::background::{BackgroundJob, poll_job};
+use super::background::JobSlot;
 use super::error::AppError;
 use super::state::AppState;
 
@@ -19,9 +19,8 @@ use super::state::AppState;
 pub struct CostState {
     /// Budget of one experiment, seconds; 30..=1800, default 120.
     pub budget_secs: f64,
-    job: Option<BackgroundJob<Progress, CostResult>>,
-    /// The last result, or the error that ended the last run.
-    pub result: Option<Result<CostResult, AppError>>,
+    /// The running experiment and the last result (or the error that ended the last run).
+    pub job: JobSlot<Progress, CostResult>,
     /// "Check against simulation" of the current run.
     pub check: super::sim_check::SimCheck,
 }
@@ -30,19 +29,13 @@ impl Default for CostState {
     fn default() -> Self {
         Self {
             budget_secs: 120.0,
-            job: None,
-            result: None,
+            job: JobSlot::default(),
             check: Default::default(),
         }
     }
 }
 
 impl CostState {
-    /// True while an experiment runs.
-    pub fn is_running(&self) -> bool {
-        self.job.is_some()
-    }
-
     /// Starts the experiment on `scene` on the thread `neural-cloth-cost`; `notify` requests a
     /// repaint when progress moves.
     pub fn start(
@@ -50,14 +43,12 @@ impl CostState {
         scene: Scene,
         notify: Arc<dyn Fn() + Send + Sync>,
     ) -> Result<(), AppError> {
-        if self.job.is_some() {
-            return Err(AppError::AlreadyRunning("an experiment"));
-        }
         let options = CostOptions {
             budget_secs: self.budget_secs.clamp(30.0, 1800.0),
             ..Default::default()
         };
-        self.job = Some(BackgroundJob::spawn(
+        self.job.start(
+            "an experiment",
             "neural-cloth-cost",
             Progress::default(),
             notify,
@@ -65,27 +56,7 @@ impl CostState {
                 let mut report = |now: &Progress| reporter.report(now.clone());
                 Ok(run_cost_experiment(&scene, &options, &mut report)?)
             },
-        )?);
-        Ok(())
-    }
-
-    /// Asks the running experiment to stop at its next check.
-    pub fn cancel(&self) {
-        if let Some(job) = &self.job {
-            job.cancel();
-        }
-    }
-
-    /// Collects a finished experiment (never blocks on a running one).
-    pub fn poll(&mut self) {
-        if let Some(result) = poll_job(&mut self.job) {
-            self.result = Some(result);
-        }
-    }
-
-    /// Progress of the running experiment.
-    pub fn progress(&self) -> Option<Progress> {
-        self.job.as_ref().and_then(BackgroundJob::progress)
+        )
     }
 
     /// "Measure": starts the experiment on the state's scene (its garment, avatar, motions and
@@ -98,7 +69,7 @@ impl CostState {
             None => Err(AppError::Missing("load a garment first")),
         };
         if let Err(e) = started {
-            self.result = Some(Err(e));
+            self.job.result = Some(Err(e));
         }
     }
 }
@@ -116,11 +87,11 @@ mod tests {
         let started = std::time::Instant::now();
         panel.start(scene.clone(), Arc::new(|| {})).unwrap();
         // Starting returns at once and a second start is refused while it runs.
-        assert!(panel.is_running());
+        assert!(panel.job.is_running());
         assert!(panel.start(scene, Arc::new(|| {})).is_err());
-        panel.cancel();
-        while panel.is_running() {
-            panel.poll();
+        panel.job.cancel();
+        while panel.job.is_running() {
+            panel.job.poll();
             std::thread::sleep(std::time::Duration::from_millis(20));
             assert!(
                 started.elapsed().as_secs() < 120,
@@ -128,7 +99,7 @@ mod tests {
             );
         }
         assert!(
-            matches!(panel.result, Some(Err(_))),
+            matches!(panel.job.result, Some(Err(_))),
             "a cancelled run reports an error, not a result"
         );
     }

@@ -12,18 +12,18 @@ impl super::NeuralClothApp {
             ui.horizontal(|ui| {
                 ui.add(egui::Slider::new(&mut self.cost.budget_secs, 30.0..=1800.0).logarithmic(true).suffix(" s").text("budget"));
             });
-            if self.cost.is_running() {
-                if let Some(p) = self.cost.progress() {
+            if self.cost.job.is_running() {
+                if let Some(p) = self.cost.job.progress() {
                     ui.add(egui::ProgressBar::new(p.fraction as f32).text(format!("{} {}", p.phase, p.detail)));
                 }
                 if ui.button("Cancel").clicked() {
-                    self.cost.cancel();
+                    self.cost.job.cancel();
                 }
                 ui.ctx().request_repaint_after(std::time::Duration::from_millis(250));
             } else if ui.button("Measure").clicked() {
                 self.cost.measure(&self.state, self.notify.clone());
             }
-            match &self.cost.result {
+            match &self.cost.job.result {
                 Some(Ok(r)) => cost_table_ui(ui, r),
                 Some(Err(e)) => {
                     ui.colored_label(ui.visuals().error_fg_color, e.to_string());

@@ -175,8 +175,8 @@ impl NeuralClothApp {
         if let Some(outcome) = self.fit.poll() {
             self.state.apply_fit(outcome);
         }
-        self.cost.poll();
-        self.cost.check.poll();
+        self.cost.job.poll();
+        self.cost.check.job.poll();
         self.export.poll(&mut self.state);
     }
 

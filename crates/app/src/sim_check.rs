@@ -9,7 +9,7 @@ use std::sync::Arc;
 use neural_cloth_train::compare::{CompareOptions, CompareProgress, CompareReport, compare};
 use neural_cloth_train::load_trained;
 
-use super::background::{BackgroundJob, poll_job};
+use super::background::JobSlot;
 use super::error::AppError;
 
 /// State of the "Check against simulation" action.
@@ -19,9 +19,8 @@ pub struct SimCheck {
     /// Compare only the motion shown in the viewport (otherwise the validation motions);
     /// default false.
     pub shown_motion_only: bool,
-    job: Option<BackgroundJob<Option<CompareProgress>, CompareReport>>,
-    /// The last result, or the error that ended the last check.
-    pub result: Option<Result<CompareReport, AppError>>,
+    /// The running comparison and the last result (or the error that ended the last check).
+    pub job: JobSlot<Option<CompareProgress>, CompareReport>,
 }
 
 impl Default for SimCheck {
@@ -29,8 +28,7 @@ impl Default for SimCheck {
         Self {
             iterations: 200,
             shown_motion_only: false,
-            job: None,
-            result: None,
+            job: JobSlot::default(),
         }
     }
 }
@@ -50,11 +48,6 @@ pub fn unavailable_reason(run_dir: Option<&Path>) -> Option<String> {
 }
 
 impl SimCheck {
-    /// True while a comparison runs.
-    pub fn is_running(&self) -> bool {
-        self.job.is_some()
-    }
-
     /// Starts comparing the newest checkpoint of the run at `run_dir` on the thread
     /// `neural-cloth-compare` (on `motion`, or the validation motions when `None`); `notify`
     /// requests a repaint when progress moves.
@@ -64,14 +57,12 @@ impl SimCheck {
         motion: Option<String>,
         notify: Arc<dyn Fn() + Send + Sync>,
     ) -> Result<(), AppError> {
-        if self.job.is_some() {
-            return Err(AppError::AlreadyRunning("a check"));
-        }
         let options = CompareOptions {
             iterations: self.iterations.clamp(1, 10_000),
             ..Default::default()
         };
-        self.job = Some(BackgroundJob::spawn(
+        self.job.start(
+            "a check",
             "neural-cloth-compare",
             None,
             notify,
@@ -80,27 +71,12 @@ impl SimCheck {
                 let mut report = |now: CompareProgress| reporter.report(Some(now));
                 Ok(compare(&trained, motion.as_deref(), &options, &mut report)?)
             },
-        )?);
-        Ok(())
-    }
-
-    /// Asks the running comparison to stop at its next frame.
-    pub fn cancel(&self) {
-        if let Some(job) = &self.job {
-            job.cancel();
-        }
-    }
-
-    /// Collects a finished comparison (never blocks on a running one).
-    pub fn poll(&mut self) {
-        if let Some(result) = poll_job(&mut self.job) {
-            self.result = Some(result);
-        }
+        )
     }
 
     /// Progress of the running comparison.
     pub fn progress(&self) -> Option<CompareProgress> {
-        self.job.as_ref().and_then(|j| j.progress().flatten())
+        self.job.progress().flatten()
     }
 
     /// "Check against simulation" pressed: compares the run at `run_dir` (none: nothing to
@@ -117,7 +93,7 @@ impl SimCheck {
         };
         let motion = shown.filter(|_| self.shown_motion_only);
         if let Err(e) = self.start(dir, motion, notify) {
-            self.result = Some(Err(e));
+            self.job.result = Some(Err(e));
         }
     }
 }
@@ -143,12 +119,12 @@ mod tests {
         check
             .start(dir.path().to_path_buf(), None, Arc::new(|| {}))
             .unwrap();
-        assert!(check.is_running());
-        while check.is_running() {
-            check.poll();
+        assert!(check.job.is_running());
+        while check.job.is_running() {
+            check.job.poll();
             std::thread::sleep(std::time::Duration::from_millis(10));
         }
-        let error = match &check.result {
+        let error = match &check.job.result {
             Some(Err(e)) => e.to_string(),
             _ => String::from("no error"),
         };
