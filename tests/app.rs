@@ -606,3 +606,72 @@ fn check_against_simulation_needs_a_trained_run() {
     h.run();
     assert!(!check_button_disabled(&mut h), "enabled with a checkpoint");
 }
+
+#[test]
+fn a_check_result_shows_every_row_compare_prints() {
+    use neural_cloth::train::compare::{
+        CompareOptions, CompareReport, HemComparison, HemPair, MetricPair, MotionComparison,
+        MotionMeasures, ReferenceInfo, RigidSplit,
+    };
+    let hem = HemPair {
+        network_m: 0.2,
+        simulator_m: 0.21,
+        network_static_m: 0.17,
+        simulator_static_m: 0.168,
+    };
+    let measures = MotionMeasures {
+        frames: 3,
+        rigid: Some(RigidSplit::default()),
+        hem: Some(HemComparison {
+            vertices: 10,
+            still: Some(hem),
+            moving: Some(hem),
+        }),
+        ..Default::default()
+    };
+    let motion = MotionComparison {
+        name: "spin".into(),
+        measures,
+        metrics: MetricPair::default(),
+        reference: ReferenceInfo {
+            path: PathBuf::from("spin.pc2"),
+            cached: true,
+            simulate_secs: 0.0,
+        },
+    };
+    let expected: Vec<&str> = measures
+        .rows()
+        .iter()
+        .map(|r| r.label)
+        .chain(motion.metric_rows().iter().map(|r| r.label))
+        .collect();
+    let mut h = harness(None);
+    h.get_by_label("Cost").scroll_to_me();
+    h.run();
+    h.get_by_label("Cost").click_accesskit();
+    h.state_mut().cost.check.job.result = Some(Ok(CompareReport {
+        run: PathBuf::from("run"),
+        step: 1,
+        garment: "skirt".into(),
+        vertices: 3,
+        fps: 30.0,
+        below_hips: true,
+        options: CompareOptions::default(),
+        motions: vec![motion],
+    }));
+    h.run();
+    for label in [
+        "distance after rigid fit, mm",
+        "hem radius sim static, m",
+        "training objective, J",
+    ] {
+        assert!(
+            expected.contains(&label),
+            "{label} is one of compare's rows"
+        );
+    }
+    for label in expected {
+        let shown = h.query_all_by_label(label).next().is_some();
+        assert!(shown, "the app shows '{label}'");
+    }
+}

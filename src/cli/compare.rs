@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use neural_cloth::train::compare::{
-    CompareOptions, CompareReport, HemPair, MotionComparison, TrainingCheck, append_checks, compare,
+    CompareOptions, CompareReport, MotionComparison, TrainingCheck, append_checks, compare,
 };
 use neural_cloth::train::load_trained;
 
@@ -145,95 +145,17 @@ fn motion_table(s: &mut String, m: &MotionComparison) {
         "  {:<28}{:>12}{:>12}{:>12}",
         "", "all frames", "still", "moving"
     );
-    let mut row = |label: &str, values: [Option<f64>; 3], decimals: usize| {
-        let _ = writeln!(
-            s,
-            "  {label:<28}{:>12}{:>12}{:>12}",
-            opt(values[0], decimals),
-            opt(values[1], decimals),
-            opt(values[2], decimals)
-        );
-    };
-    row(
-        "distance mean, mm",
-        [
-            Some(r.all.mean_mm),
-            r.still.map(|d| d.mean_mm),
-            r.moving.map(|d| d.mean_mm),
-        ],
-        1,
-    );
-    row(
-        "distance p95, mm",
-        [
-            Some(r.all.p95_mm),
-            r.still.map(|d| d.p95_mm),
-            r.moving.map(|d| d.p95_mm),
-        ],
-        1,
-    );
-    for (label, a) in [
-        ("swing network, mm", r.amplitude.network),
-        ("swing simulator, mm", r.amplitude.simulator),
-    ] {
-        row(label, [Some(a.all_mm), a.still_mm, a.moving_mm], 1);
-    }
-    if let Some(rigid) = &r.rigid {
-        // Over all frames only: a frame's best rigid motion is fitted per frame.
-        for (label, value) in [
-            ("distance after rigid fit, mm", rigid.shape_distance_mm),
-            ("slip network, mm", rigid.network_slip_mm),
-            ("slip simulator, mm", rigid.simulator_slip_mm),
-            ("shape swing network, mm", rigid.network_shape_swing_mm),
-            ("shape swing simulator, mm", rigid.simulator_shape_swing_mm),
-        ] {
-            row(label, [Some(value), None, None], 1);
-        }
-    }
-    if let Some(hem) = &r.hem {
-        type Radius = (&'static str, fn(&HemPair) -> f64);
-        let radii: [Radius; 4] = [
-            ("hem radius network, m", |h| h.network_m),
-            ("hem radius simulator, m", |h| h.simulator_m),
-            ("hem radius network w=0, m", |h| h.network_static_m),
-            ("hem radius sim static, m", |h| h.simulator_static_m),
-        ];
-        for (label, pick) in radii {
-            row(
-                label,
-                [
-                    None,
-                    hem.still.as_ref().map(pick),
-                    hem.moving.as_ref().map(pick),
-                ],
-                3,
-            );
-        }
+    for row in r.rows() {
+        let [all, still, moving] = row.values.map(|v| opt(v, row.decimals));
+        let _ = writeln!(s, "  {:<28}{all:>12}{still:>12}{moving:>12}", row.label);
     }
     let _ = writeln!(s, "  {:<28}{:>12}{:>12}", "metrics", "network", "simulator");
-    let (net, sim) = (m.metrics.network.named(), m.metrics.simulator.named());
-    for ((name, a), (_, b)) in net.iter().zip(&sim) {
-        let _ = writeln!(s, "  {name:<28}{a:>12.4}{b:>12.4}");
-    }
-    let (net, sim) = (&m.metrics.network, &m.metrics.simulator);
-    let _ = writeln!(
-        s,
-        "  {:<28}{:>12.3}{:>12.3}",
-        "slip over the body, mm/frame", net.slip_mm, sim.slip_mm
-    );
-    // The training objective on both sides (pinning left out; inertia from each side's own
-    // history): on still poses, the simulator's lower value says the network's frames are not
-    // a minimum of the loss it was trained on.
-    let _ = writeln!(
-        s,
-        "  {:<28}{:>12.5}{:>12.5}",
-        "training objective, J", net.loss, sim.loss
-    );
-    if net.friction != 0.0 || sim.friction != 0.0 {
+    for row in m.metric_rows() {
+        let d = row.decimals;
         let _ = writeln!(
             s,
-            "  {:<28}{:>12.6}{:>12.6}",
-            "friction", net.friction, sim.friction
+            "  {:<28}{:>12.d$}{:>12.d$}",
+            row.label, row.network, row.simulator
         );
     }
 }

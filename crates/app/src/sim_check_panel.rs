@@ -11,7 +11,7 @@ impl super::NeuralClothApp {
         ui.separator();
         ui.strong("Check against simulation");
         ui.label("The current run's network against the reference simulator on the same motion: distance, swing and the paper's metrics.");
-        if self.cost.check.is_running() {
+        if self.cost.check.job.is_running() {
             check_progress_ui(ui, &self.cost.check);
         } else {
             let shown = self.state.current_motion().map(|m| m.name.clone());
@@ -23,7 +23,7 @@ impl super::NeuralClothApp {
                     .check_clicked(run_dir, shown, self.notify.clone());
             }
         }
-        match &self.cost.check.result {
+        match &self.cost.check.job.result {
             Some(Ok(r)) => compare_table_ui(ui, r),
             Some(Err(e)) => {
                 ui.colored_label(ui.visuals().error_fg_color, e.to_string());
@@ -40,7 +40,7 @@ fn check_progress_ui(ui: &mut egui::Ui, check: &SimCheck) {
         ui.add(egui::ProgressBar::new(p.fraction() as f32).text(text));
     }
     if ui.button("Cancel check").clicked() {
-        check.cancel();
+        check.job.cancel();
     }
     ui.ctx()
         .request_repaint_after(std::time::Duration::from_millis(250));
@@ -107,53 +107,12 @@ fn compare_table_ui(ui: &mut egui::Ui, r: &CompareReport) {
                     ui.strong(h);
                 }
                 ui.end_row();
-                let mut row = |label: &str, values: [Option<f64>; 3], decimals: usize| {
-                    ui.label(label);
-                    for v in values {
-                        ui.label(cell(v, decimals));
+                for row in s.rows() {
+                    ui.label(row.label);
+                    for v in row.values {
+                        ui.label(cell(v, row.decimals));
                     }
                     ui.end_row();
-                };
-                row(
-                    "mean mm",
-                    [
-                        Some(s.all.mean_mm),
-                        s.still.map(|d| d.mean_mm),
-                        s.moving.map(|d| d.mean_mm),
-                    ],
-                    1,
-                );
-                row(
-                    "p95 mm",
-                    [
-                        Some(s.all.p95_mm),
-                        s.still.map(|d| d.p95_mm),
-                        s.moving.map(|d| d.p95_mm),
-                    ],
-                    1,
-                );
-                let (n, q) = (s.amplitude.network, s.amplitude.simulator);
-                row("swing net mm", [Some(n.all_mm), n.still_mm, n.moving_mm], 1);
-                row("swing sim mm", [Some(q.all_mm), q.still_mm, q.moving_mm], 1);
-                if let Some(h) = &s.hem {
-                    row(
-                        "hem net m",
-                        [
-                            None,
-                            h.still.map(|p| p.network_m),
-                            h.moving.map(|p| p.network_m),
-                        ],
-                        3,
-                    );
-                    row(
-                        "hem sim m",
-                        [
-                            None,
-                            h.still.map(|p| p.simulator_m),
-                            h.moving.map(|p| p.simulator_m),
-                        ],
-                        3,
-                    );
                 }
             });
         egui::Grid::new(("compare metrics", m.name.as_str()))
@@ -163,11 +122,11 @@ fn compare_table_ui(ui: &mut egui::Ui, r: &CompareReport) {
                     ui.strong(h);
                 }
                 ui.end_row();
-                let sim = m.metrics.simulator.named();
-                for ((name, a), (_, b)) in m.metrics.network.named().iter().zip(&sim) {
-                    ui.label(*name);
-                    ui.label(format!("{a:.4}"));
-                    ui.label(format!("{b:.4}"));
+                for row in m.metric_rows() {
+                    let d = row.decimals;
+                    ui.label(row.label);
+                    ui.label(format!("{:.d$}", row.network));
+                    ui.label(format!("{:.d$}", row.simulator));
                     ui.end_row();
                 }
             });

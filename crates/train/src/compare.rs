@@ -30,6 +30,7 @@ mod cache;
 mod measure;
 mod record;
 mod rigid;
+mod rows;
 
 pub use cache::{REFERENCE_TOLERANCE, Reference, reference_dir, reference_for};
 pub use measure::{
@@ -39,6 +40,7 @@ pub use measure::{
 };
 pub use record::{TrainingCheck, append_checks, read_checks};
 pub use rigid::{RigidFit, RigidSplit, best_rigid_fit, rigid_split};
+pub use rows::{MeasureRow, MetricRow};
 
 use std::path::PathBuf;
 use std::sync::Arc;

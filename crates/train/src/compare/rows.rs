@@ -1,0 +1,177 @@
+//! The rows of a motion's comparison table, in display order: one home for what `compare`
+//! prints and what the app's "Check against simulation" shows.
+
+use super::MotionComparison;
+use super::measure::{HemPair, MotionMeasures};
+
+/// One row of the geometric table: a label with its unit and the values over all frames,
+/// the still frames and the moving frames (`None`: not measured there).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeasureRow {
+    /// What the row measures, with its unit ("distance mean, mm").
+    pub label: &'static str,
+    /// All frames, still frames, moving frames.
+    pub values: [Option<f64>; 3],
+    /// Decimals to show.
+    pub decimals: usize,
+}
+
+/// One row of the metric table: the network's value beside the simulator's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MetricRow {
+    /// What the row measures.
+    pub label: &'static str,
+    /// The network's value.
+    pub network: f64,
+    /// The simulator's value.
+    pub simulator: f64,
+    /// Decimals to show.
+    pub decimals: usize,
+}
+
+fn row(label: &'static str, values: [Option<f64>; 3], decimals: usize) -> MeasureRow {
+    MeasureRow {
+        label,
+        values,
+        decimals,
+    }
+}
+
+impl MotionMeasures {
+    /// The geometric rows: distances, swings, the rigid split (all frames only: a frame's
+    /// best rigid motion is fitted per frame) and the hem radii (still and moving only).
+    pub fn rows(&self) -> Vec<MeasureRow> {
+        let mut rows = vec![
+            row(
+                "distance mean, mm",
+                [
+                    Some(self.all.mean_mm),
+                    self.still.map(|d| d.mean_mm),
+                    self.moving.map(|d| d.mean_mm),
+                ],
+                1,
+            ),
+            row(
+                "distance p95, mm",
+                [
+                    Some(self.all.p95_mm),
+                    self.still.map(|d| d.p95_mm),
+                    self.moving.map(|d| d.p95_mm),
+                ],
+                1,
+            ),
+        ];
+        for (label, a) in [
+            ("swing network, mm", self.amplitude.network),
+            ("swing simulator, mm", self.amplitude.simulator),
+        ] {
+            rows.push(row(label, [Some(a.all_mm), a.still_mm, a.moving_mm], 1));
+        }
+        if let Some(rigid) = &self.rigid {
+            for (label, value) in [
+                ("distance after rigid fit, mm", rigid.shape_distance_mm),
+                ("slip network, mm", rigid.network_slip_mm),
+                ("slip simulator, mm", rigid.simulator_slip_mm),
+                ("shape swing network, mm", rigid.network_shape_swing_mm),
+                ("shape swing simulator, mm", rigid.simulator_shape_swing_mm),
+            ] {
+                rows.push(row(label, [Some(value), None, None], 1));
+            }
+        }
+        if let Some(hem) = &self.hem {
+            type Radius = (&'static str, fn(&HemPair) -> f64);
+            let radii: [Radius; 4] = [
+                ("hem radius network, m", |h| h.network_m),
+                ("hem radius simulator, m", |h| h.simulator_m),
+                ("hem radius network w=0, m", |h| h.network_static_m),
+                ("hem radius sim static, m", |h| h.simulator_static_m),
+            ];
+            for (label, pick) in radii {
+                let values = [
+                    None,
+                    hem.still.as_ref().map(pick),
+                    hem.moving.as_ref().map(pick),
+                ];
+                rows.push(row(label, values, 3));
+            }
+        }
+        rows
+    }
+}
+
+impl MotionComparison {
+    /// The metric rows: the paper's metrics of both sides, the slip over the body, the
+    /// training objective (pinning left out; inertia from each side's own history, so on
+    /// still poses only a lower simulator value says the network's frames are not a minimum
+    /// of the loss it was trained on) and, when either side has any, friction.
+    pub fn metric_rows(&self) -> Vec<MetricRow> {
+        let (net, sim) = (&self.metrics.network, &self.metrics.simulator);
+        let mut rows: Vec<MetricRow> = net
+            .named()
+            .iter()
+            .zip(sim.named())
+            .map(|((label, network), (_, simulator))| MetricRow {
+                label,
+                network: *network,
+                simulator,
+                decimals: 4,
+            })
+            .collect();
+        let mut push = |label, network, simulator, decimals| {
+            rows.push(MetricRow {
+                label,
+                network,
+                simulator,
+                decimals,
+            })
+        };
+        push("slip over the body, mm/frame", net.slip_mm, sim.slip_mm, 3);
+        push("training objective, J", net.loss, sim.loss, 5);
+        if net.friction != 0.0 || sim.friction != 0.0 {
+            push("friction", net.friction, sim.friction, 6);
+        }
+        rows
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::measure::{Amplitude, AmplitudeStats, DistanceStats};
+    use super::*;
+
+    #[test]
+    fn rows_follow_what_was_measured() {
+        let stats = DistanceStats {
+            frames: 10,
+            mean_mm: 2.0,
+            p95_mm: 5.0,
+        };
+        let swing = AmplitudeStats {
+            all_mm: 1.0,
+            still_mm: None,
+            moving_mm: Some(1.5),
+        };
+        let m = MotionMeasures {
+            frames: 10,
+            still_frames: 0,
+            all: stats,
+            still: None,
+            moving: Some(stats),
+            amplitude: Amplitude {
+                network: swing,
+                simulator: swing,
+            },
+            hem: None,
+            rigid: None,
+        };
+        let rows = m.rows();
+        assert_eq!(
+            rows.len(),
+            4,
+            "no rigid split and no hem: distances and swings"
+        );
+        assert_eq!(rows[0].values, [Some(2.0), None, Some(2.0)]);
+        assert_eq!(rows[1].label, "distance p95, mm");
+        assert_eq!(rows[3].values, [Some(1.0), None, Some(1.5)]);
+    }
+}
