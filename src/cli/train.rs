@@ -100,6 +100,10 @@ pub struct TrainArgs {
     /// Gain of the basis initialisation (default 1 = glorot-normal).
     #[arg(long)]
     pub basis_init_gain: Option<f64>,
+    /// Hidden widths of the static encoder, comma-separated (default the paper's
+    /// `64,128,256`; `512,512,512` lifted the still drape less in docs/TRAINING.md round 9).
+    #[arg(long, value_delimiter = ',')]
+    pub static_hidden: Option<Vec<usize>>,
     /// Seconds the simulator drapes the garment on the rest pose before training (warm
     /// start; 0 = off, default 1.5).
     #[arg(long)]
@@ -285,6 +289,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(g) = args.basis_init_gain {
         model.basis_init_gain = g;
+    }
+    if let Some(widths) = &args.static_hidden {
+        model.static_hidden = widths.clone();
     }
     if let Some(p) = args.predrape_secs {
         train.predrape_secs = p;
