@@ -87,11 +87,6 @@ pub fn run(args: CompareArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `value` with `decimals`, or a dash.
-fn opt(value: Option<f64>, decimals: usize) -> String {
-    value.map_or_else(|| "—".into(), |v| format!("{v:.decimals$}"))
-}
-
 /// The report as a readable text table.
 pub fn table(report: &CompareReport) -> String {
     let o = &report.options;
@@ -146,7 +141,7 @@ fn motion_table(s: &mut String, m: &MotionComparison) {
         "", "all frames", "still", "moving"
     );
     for row in r.rows() {
-        let [all, still, moving] = row.values.map(|v| opt(v, row.decimals));
+        let [all, still, moving] = row.cells();
         let _ = writeln!(s, "  {:<28}{all:>12}{still:>12}{moving:>12}", row.label);
     }
     let _ = writeln!(s, "  {:<28}{:>12}{:>12}", "metrics", "network", "simulator");

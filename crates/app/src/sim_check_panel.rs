@@ -76,11 +76,6 @@ fn check_settings_ui(
     .clicked()
 }
 
-/// `value` with `decimals`, or a dash.
-fn cell(value: Option<f64>, decimals: usize) -> String {
-    value.map_or_else(|| "—".into(), |v| format!("{v:.decimals$}"))
-}
-
 /// The comparison as one table per motion.
 fn compare_table_ui(ui: &mut egui::Ui, r: &CompareReport) {
     ui.label(format!(
@@ -109,8 +104,8 @@ fn compare_table_ui(ui: &mut egui::Ui, r: &CompareReport) {
                 ui.end_row();
                 for row in s.rows() {
                     ui.label(row.label);
-                    for v in row.values {
-                        ui.label(cell(v, row.decimals));
+                    for c in row.cells() {
+                        ui.label(c);
                     }
                     ui.end_row();
                 }

@@ -29,6 +29,15 @@ pub struct MetricRow {
     pub decimals: usize,
 }
 
+impl MeasureRow {
+    /// The three values with the row's decimals, a dash where not measured.
+    pub fn cells(&self) -> [String; 3] {
+        let d = self.decimals;
+        self.values
+            .map(|v| v.map_or_else(|| "—".into(), |v| format!("{v:.d$}")))
+    }
+}
+
 fn row(label: &'static str, values: [Option<f64>; 3], decimals: usize) -> MeasureRow {
     MeasureRow {
         label,
@@ -173,5 +182,6 @@ mod tests {
         assert_eq!(rows[0].values, [Some(2.0), None, Some(2.0)]);
         assert_eq!(rows[1].label, "distance p95, mm");
         assert_eq!(rows[3].values, [Some(1.0), None, Some(1.5)]);
+        assert_eq!(rows[3].cells(), ["1.0", "—", "1.5"]);
     }
 }
