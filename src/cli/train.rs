@@ -100,8 +100,10 @@ pub struct TrainArgs {
     /// Gain of the basis initialisation (default 1 = glorot-normal).
     #[arg(long)]
     pub basis_init_gain: Option<f64>,
-    /// Hidden widths of the static encoder, comma-separated (default `512,512,512`; the
-    /// paper's `64,128,256` lifts the still drape more, docs/TRAINING.md round 10).
+    /// Hidden widths of the static encoder, comma-separated (default the paper's
+    /// `64,128,256`; `512,512,512` with `--precondition-moving-only` brings the skirt's spin
+    /// a third closer to the simulator, but drifts on a 30-minute t-shirt run:
+    /// docs/TRAINING.md round 10).
     #[arg(long, value_delimiter = ',')]
     pub static_hidden: Option<Vec<usize>>,
     /// Seconds the simulator drapes the garment on the rest pose before training (warm
@@ -131,7 +133,7 @@ pub struct TrainArgs {
     #[arg(long)]
     pub precondition: Option<f64>,
     /// Filter the moving windows' gradient only, still windows keeping the plain gradient
-    /// (default true; `false` filters every window, as before round 10 of docs/TRAINING.md)
+    /// (default false: every window is filtered; see docs/TRAINING.md round 8)
     #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
     pub precondition_moving_only: Option<bool>,
     /// Filter the dynamic terms' gradient only, the static terms keeping the plain gradient

@@ -31,9 +31,7 @@ pub use descriptors::{
 };
 pub use inference::{InferenceEngine, InferenceOptions};
 pub use kernels::Precision;
-pub use network::{
-    ClothNet, ClothNetConfig, DEFAULT_STATIC_HIDDEN, EncoderKind, PAPER_STATIC_HIDDEN,
-};
+pub use network::{ClothNet, ClothNetConfig, EncoderKind};
 pub use skinning::{GarmentLbs, SkinMatrixBuilder};
 pub use weights::InferenceWeights;
 

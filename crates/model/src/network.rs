@@ -1,7 +1,6 @@
 //! The recurrent encoder-decoder of paper §3.3 as a burn module.
 //!
-//! * Static encoder: flatten `[J, 9]` -> FC 512, 512, 512 (the paper's 64, 128, 256 widened:
-//!   [`DEFAULT_STATIC_HIDDEN`]), latent (ReLU, bias).
+//! * Static encoder: flatten `[J, 9]` -> FC 64, 128, 256, latent (ReLU, bias).
 //! * Dynamic encoder, no bias anywhere: per-joint FC 12 -> 32 -> 32 (weights shared by all
 //!   joints: a `Linear` on `[B, T, J, 12]` acts per joint), flatten `[J, 32]` -> FC 512 ->
 //!   FC 512 -> GRU(latent). ReLU follows every FC layer, as in the authors' official code
@@ -31,8 +30,7 @@ use super::descriptors::DYNAMIC_DIM;
 
 pub use super::network_config::{
     ClothNetConfig, DEFAULT_BASIS_BIAS_LR_SCALE, DEFAULT_BASIS_LR_SCALE,
-    DEFAULT_DYNAMIC_BASIS_LR_SCALE, DEFAULT_STATIC_HIDDEN, EncoderKind, MAX_WIDTH,
-    PAPER_STATIC_HIDDEN,
+    DEFAULT_DYNAMIC_BASIS_LR_SCALE, EncoderKind, MAX_WIDTH,
 };
 
 /// A stack of linear layers, each followed by ReLU.

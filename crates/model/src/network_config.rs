@@ -30,11 +30,7 @@ pub struct ClothNetConfig {
     /// Encoder layout; default `disentangled`.
     pub encoder: EncoderKind,
     /// Hidden widths of the static encoder before its final `latent` layer; each 1..=8192,
-    /// default [`DEFAULT_STATIC_HIDDEN`] `[512, 512, 512]`, wider than the paper's
-    /// `[64, 128, 256]` ([`PAPER_STATIC_HIDDEN`], which runs saved without the field read):
-    /// with the filter on moving windows only it lifts the still drape less and brings the
-    /// skirt's spin a third closer to the simulator (docs/TRAINING.md, round 10).
-    #[serde(default = "paper_static_hidden")]
+    /// default `[64, 128, 256]`.
     pub static_hidden: Vec<usize>,
     /// Widths of the per-joint layers of the dynamic (or entangled) encoder; at least one,
     /// each 1..=8192, default `[32, 32]`.
@@ -112,21 +108,6 @@ fn unit_scale() -> f64 {
     1.0
 }
 
-fn paper_static_hidden() -> Vec<usize> {
-    PAPER_STATIC_HIDDEN.to_vec()
-}
-
-/// The paper's hidden widths of the static encoder (§3.3, and the official code).
-pub const PAPER_STATIC_HIDDEN: [usize; 3] = [64, 128, 256];
-
-/// Default [`ClothNetConfig::static_hidden`]: three layers of the latent's width. Against the
-/// paper's widths, both with the filter on moving windows only, same seeds and steps: the
-/// skirt's spin 88.6 / 92.8 / 90.5 mm from the simulator against 135.1 / 138.6 / 135.6
-/// (seeds 14 / 15 / 16), the t-shirt's `w = 0` idle drape lifted about half as far
-/// (docs/TRAINING.md, round 10). It adds about 0.7 M weights (2.8 MB in f32) to the 10 M
-/// of the default t-shirt's network.
-pub const DEFAULT_STATIC_HIDDEN: [usize; 3] = [512, 512, 512];
-
 /// Default [`ClothNetConfig::basis_lr_scale`]: one over the default decoder width.
 pub const DEFAULT_BASIS_LR_SCALE: f64 = 1.0 / 512.0;
 
@@ -144,7 +125,7 @@ impl Default for ClothNetConfig {
     fn default() -> Self {
         Self {
             encoder: EncoderKind::Disentangled,
-            static_hidden: DEFAULT_STATIC_HIDDEN.to_vec(),
+            static_hidden: vec![64, 128, 256],
             joint_hidden: vec![32, 32],
             dynamic_hidden: vec![512, 512],
             latent: 512,
