@@ -78,6 +78,11 @@ pub struct TrainArgs {
     /// Temporal window in seconds.
     #[arg(long)]
     pub window: Option<f32>,
+    /// Seconds of motion before each window over which the GRU runs without gradient to set
+    /// the window's starting state, as inference carries it (0..=10, default 0; not yet
+    /// measured: docs/TRAINING.md round 10).
+    #[arg(long, value_name = "SECS")]
+    pub gru_burn_in: Option<f32>,
     /// Training frame rate in frames per second, 5..=240, replacing the scene's
     /// `training_fps` (default: the scene's, 30 in the built-in scene); a resumed run keeps
     /// the rate it was trained at.
@@ -275,6 +280,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(w) = args.window {
         train.window_secs = w;
+    }
+    if let Some(secs) = args.gru_burn_in {
+        train.gru_burn_in_secs = secs;
     }
     if let Some(s) = args.seed {
         train.seed = s;

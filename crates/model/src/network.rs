@@ -254,14 +254,35 @@ impl ClothNet {
         self.decode_with(z, z_d)
     }
 
+    /// The dynamic encoder's GRU state `[B, latent]` after the frames of `dynamic_desc`
+    /// (`[B, H, J, 12]`) from a zero state, detached: the state a training window starts from
+    /// when the `H` frames before it are played first, as inference carries the state over a
+    /// whole motion. `None` without a dynamic branch or when `H = 0`.
+    pub fn burn_in_state(&self, dynamic_desc: Tensor<4>) -> Option<Tensor<2>> {
+        let enc = self.dynamic_encoder.as_ref()?;
+        let [b, h, _, _] = dynamic_desc.dims();
+        if h == 0 {
+            return None;
+        }
+        let states = enc.forward(dynamic_desc, None);
+        Some(
+            states
+                .narrow(1, h - 1, 1)
+                .reshape([b, self.latent])
+                .detach(),
+        )
+    }
+
     /// Codes of the last `last` frames (1..=T) for motion augmentation: `(z_S, Some(z_D))` for
     /// the disentangled variant (shuffle / detach `z_D`, then [`ClothNet::decode`]
-    /// `z_S + w z_D`), `(z_S, None)` when static-only, `(z, None)` when entangled. Each `[B, last, latent]`.
+    /// `z_S + w z_D`), `(z_S, None)` when static-only, `(z, None)` when entangled. Each
+    /// `[B, last, latent]`. The dynamic encoder's GRU starts from `state` (zero when `None`).
     pub fn encode_last(
         &self,
         static_desc: Tensor<4>,
         dynamic_desc: Option<Tensor<4>>,
         last: usize,
+        state: Option<Tensor<2>>,
     ) -> (Tensor<3>, Option<Tensor<3>>) {
         let t = static_desc.dims()[1];
         let last = last.clamp(1, t.max(1));
@@ -275,20 +296,22 @@ impl ClothNet {
         }
         let z_s = self.latent_code(static_desc.narrow(1, start, last), None, 0.0);
         let z_d = match (dynamic_desc, &self.dynamic_encoder) {
-            (Some(d), Some(enc)) => Some(enc.forward(d, None).narrow(1, start, last)),
+            (Some(d), Some(enc)) => Some(enc.forward(d, state).narrow(1, start, last)),
             _ => None,
         };
         (z_s, z_d)
     }
 
     /// Offsets `[B, last, V, 3]` of the last `last` frames only (1..=T): the GRU runs over the
-    /// whole window, the static encoder and the decoder over the last frames (training takes 3).
+    /// whole window from `state` (zero when `None`), the static encoder and the decoder over
+    /// the last frames (training takes 3).
     pub fn forward_last(
         &self,
         static_desc: Tensor<4>,
         dynamic_desc: Option<Tensor<4>>,
         w: f32,
         last: usize,
+        state: Option<Tensor<2>>,
     ) -> Tensor<4> {
         let t = static_desc.dims()[1];
         let last = last.clamp(1, t.max(1));
@@ -301,7 +324,7 @@ impl ClothNet {
         let z_s = self.latent_code(s_last, None, 0.0);
         match (dynamic_desc, &self.dynamic_encoder) {
             (Some(d), Some(enc)) if w != 0.0 => {
-                let z_d = enc.forward(d, None).narrow(1, start, last).mul_scalar(w);
+                let z_d = enc.forward(d, state).narrow(1, start, last).mul_scalar(w);
                 self.decode_with(z_s + z_d.clone(), Some(z_d))
             }
             _ => self.decode(z_s),

@@ -126,7 +126,10 @@ fn dynamic_branch_has_no_bias_and_shapes_hold() {
         net.forward(s.clone(), Some(d.clone()), 1.0).dims(),
         [2, 4, 5, 3]
     );
-    assert_eq!(net.forward_last(s, Some(d), 1.0, 3).dims(), [2, 3, 5, 3]);
+    assert_eq!(
+        net.forward_last(s, Some(d), 1.0, 3, None).dims(),
+        [2, 3, 5, 3]
+    );
     let st = ClothNetConfig {
         encoder: EncoderKind::StaticOnly,
         ..small()
@@ -312,4 +315,36 @@ fn dynamic_basis_starts_at_zero_gets_a_gradient_and_scales_with_w() {
             assert_ne!(with, without, "w {w}: the dynamic basis must act");
         }
     }
+}
+
+#[test]
+fn a_window_after_a_burn_in_continues_the_whole_sequence() {
+    use burn::tensor::Distribution;
+    let device = Device::flex();
+    let net = small().init(3, 5, &device).unwrap();
+    let (b, h, t) = (2, 6, 4);
+    let s = Tensor::<4>::random([b, h + t, 3, STATIC_DIM], Distribution::Default, &device);
+    let d = Tensor::<4>::random([b, h + t, 3, DYNAMIC_DIM], Distribution::Default, &device);
+    // The whole sequence in one pass, and the window alone after a burn-in of the frames
+    // before it: the same last frames.
+    let whole = net.forward_last(s.clone(), Some(d.clone()), 1.0, 3, None);
+    let state = net.burn_in_state(d.clone().narrow(1, 0, h));
+    assert!(state.is_some());
+    let window = net.forward_last(
+        s.clone().narrow(1, h, t),
+        Some(d.clone().narrow(1, h, t)),
+        1.0,
+        3,
+        state,
+    );
+    let diff = (whole - window.clone()).abs().max().into_scalar::<f32>();
+    assert!(diff < 1e-5, "burn-in then window differs by {diff}");
+    // Without the burn-in the window starts from zero and differs.
+    let cold = net.forward_last(s.narrow(1, h, t), Some(d.narrow(1, h, t)), 1.0, 3, None);
+    let gap = (cold - window).abs().max().into_scalar::<f32>();
+    assert!(gap > 1e-4, "the burn-in changed nothing ({gap})");
+    assert!(
+        net.burn_in_state(Tensor::zeros([b, 0, 3, DYNAMIC_DIM], &device))
+            .is_none()
+    );
 }

@@ -38,6 +38,13 @@ pub struct TrainConfig {
     pub batch_size: usize,
     /// Temporal window in seconds; 0.05..=4, default 0.5 (looser garments need up to 2 s).
     pub window_secs: f32,
+    /// Seconds of motion before each training window over which the dynamic encoder's GRU
+    /// runs without gradient, so that the window starts from the state inference would carry
+    /// in (inference plays whole motions; a window from a zero state never shows the GRU the
+    /// states it drifts to over seconds of slow motion, docs/TRAINING.md round 10). Frames
+    /// before a motion's start are still frames (a zero state stays zero). 0..=10, default 0
+    /// (every window from a zero state, the paper's training). Not yet measured.
+    pub gru_burn_in_secs: f32,
     /// Adam learning rate; (0, 1], default 1e-3.
     pub learning_rate: f64,
     /// Stop after this many optimiser steps (None = no limit). Default None.
@@ -158,6 +165,7 @@ impl Default for TrainConfig {
         Self {
             batch_size: 16,
             window_secs: 0.5,
+            gru_burn_in_secs: 0.0,
             learning_rate: 1e-3,
             max_steps: None,
             max_minutes: None,
@@ -213,6 +221,12 @@ impl TrainConfig {
         (self.window_secs * fps).ceil().max(0.0) as usize + 3
     }
 
+    /// Frames before each window that only set its GRU state ([`TrainConfig::gru_burn_in_secs`]
+    /// at `fps`).
+    pub fn burn_in_frames(&self, fps: f32) -> usize {
+        (self.gru_burn_in_secs * fps).round().max(0.0) as usize
+    }
+
     /// Checks every field against its documented range, for training at `fps` (the scene's
     /// training rate, frames per second): the rate itself must lie in [`TRAINING_FPS_RANGE`]
     /// and the window at that rate must hold the loss frames.
@@ -244,6 +258,12 @@ impl TrainConfig {
             "window_secs",
             self.window_secs,
             "0.05..=4 s",
+        )?;
+        check(
+            (0.0..=10.0).contains(&self.gru_burn_in_secs),
+            "gru_burn_in_secs",
+            self.gru_burn_in_secs,
+            "0..=10 s",
         )?;
         check(
             TRAINING_FPS_RANGE.contains(&fps),
@@ -398,6 +418,23 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(c.window_frames(60.0), 6 + 3);
+    }
+
+    #[test]
+    fn burn_in_is_off_by_default_and_bounded() {
+        let c = TrainConfig::default();
+        assert_eq!(c.burn_in_frames(30.0), 0);
+        let c = TrainConfig {
+            gru_burn_in_secs: 1.5,
+            ..Default::default()
+        };
+        assert_eq!(c.burn_in_frames(30.0), 45);
+        assert!(c.validate(30.0).is_ok());
+        let c = TrainConfig {
+            gru_burn_in_secs: 11.0,
+            ..Default::default()
+        };
+        assert_eq!(c.validate(30.0).unwrap_err().field, "gru_burn_in_secs");
     }
 
     #[test]

@@ -81,11 +81,25 @@ impl NeuralSession {
         let statics = self.tensor4(batch.static_desc.clone(), [b, t, j, 9]);
         let dynamics = (self.model.kind() != neural_cloth_model::EncoderKind::StaticOnly)
             .then(|| self.tensor4(batch.dynamic_desc.clone(), [b, t, j, 12]));
+        // The frames before the window only set the GRU's starting state (no gradient).
+        let burn = t.saturating_sub(self.window_frames());
+        let (statics, dynamics, state) = if burn > 0 {
+            let state = dynamics
+                .as_ref()
+                .and_then(|d| self.model.burn_in_state(d.clone().narrow(1, 0, burn)));
+            (
+                statics.narrow(1, burn, t - burn),
+                dynamics.map(|d| d.narrow(1, burn, t - burn)),
+                state,
+            )
+        } else {
+            (statics, dynamics, None)
+        };
         let split_static = self.config.static_from_still && still > 0 && still < b;
         let offsets = if (augment == 0 && !split_static) || !self.model.has_dynamic_branch() {
-            self.model.forward_last(statics, dynamics, 1.0, k)
+            self.model.forward_last(statics, dynamics, 1.0, k, state)
         } else {
-            let (z_s, z_d) = self.model.encode_last(statics, dynamics, k);
+            let (z_s, z_d) = self.model.encode_last(statics, dynamics, k, state);
             match z_d {
                 Some(z_d) => {
                     let z_s = if split_static {

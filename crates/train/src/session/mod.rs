@@ -338,6 +338,11 @@ impl NeuralSession {
         self.config.window_frames(self.fps)
     }
 
+    /// Frames of a batch: the window and the GRU burn-in before it.
+    fn batch_frames(&self) -> usize {
+        self.window_frames() + self.config.burn_in_frames(self.fps)
+    }
+
     /// Time step between frames at the training rate, seconds.
     fn dt_secs(&self) -> f32 {
         1.0 / self.fps
@@ -377,7 +382,7 @@ impl Session for NeuralSession {
         let batch = self.train.batch_with_still(
             &windows,
             still,
-            self.window_frames(),
+            self.batch_frames(),
             predicted,
             &self.garment.skin,
         );
@@ -431,7 +436,7 @@ impl Session for NeuralSession {
         if windows.is_empty() {
             return Err(TrainError::NoValidationFrames);
         }
-        let batch = data.batch(&windows, self.window_frames(), 3, &self.garment.skin);
+        let batch = data.batch(&windows, self.batch_frames(), 3, &self.garment.skin);
         let (x, blended) = self.predict(&batch, 0, 0);
         let x = x.detach();
         let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
