@@ -948,13 +948,14 @@ fn a_dead_decoder_is_reported_and_revived() {
 mod compare {
     use std::path::Path;
 
+    use neural_cloth::geometry::Vec3;
     use neural_cloth::physics::Effects;
     use neural_cloth::physics::simulator::{SimOptions, simulate};
     use neural_cloth::scene::config::SceneConfig;
     use neural_cloth::scene::procedural::build_builtin;
     use neural_cloth::train::compare::{
         CompareOptions, ComparePhase, Sequences, compare, compare_frames, measure_motion,
-        reaches_below_hips, reference_dir, still_frames,
+        reaches_below_hips, reference_dir, state_drift, still_frames,
     };
     use neural_cloth::train::{
         BackendKind, RunLocation, TrainConfig, TrainSetup, Trainer, device_for, load_trained,
@@ -1042,6 +1043,14 @@ pinning = true
             m.metrics.simulator.loss,
         ];
         assert!(numbers.iter().all(|v| v.is_finite()), "{report:?}");
+        // The GRU state's drift is measured, over the run's window (0.2 s at 30 fps + 3).
+        let drift = s.drift.expect("a dynamic network at w = 1 has a drift");
+        assert_eq!(drift.window_frames, 9);
+        assert!(drift.mean_mm.is_finite() && drift.max_frame_mm >= drift.mean_mm);
+        // Not at w = 0, where the dynamic branch is off.
+        let quiet = CompareOptions { w: 0.0, ..quick() };
+        let at_rest = compare(&trained, Some("walk"), &quiet, &mut |_| true).unwrap();
+        assert!(at_rest.motions[0].measures.drift.is_none());
         // The training objective is reported on both sides (it was left 0): at least the
         // gravity potential of the frames, which is positive above the origin.
         for side in [&m.metrics.network, &m.metrics.simulator] {
@@ -1154,6 +1163,46 @@ pinning = true
     }
 
     #[test]
+    fn state_drift_is_zero_when_the_window_holds_the_whole_motion() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = dir.path().join("run");
+        train_tiny(&run);
+        let trained = load_trained(&run).unwrap();
+        let (motion, _) = trained
+            .scene
+            .motions
+            .iter()
+            .find(|(m, _)| m.name == "walk")
+            .unwrap();
+        let motion = motion.resample(trained.meta.training_fps).unwrap();
+        let poses = &motion.frames;
+        let mut engine = trained.garment_engine().unwrap();
+        let carried: Vec<Vec<Vec3>> = poses
+            .iter()
+            .map(|p| {
+                engine.step(p, 1.0).unwrap();
+                engine.garment_positions().to_vec()
+            })
+            .collect();
+        let mut frames = 0;
+        let mut say = |_: ComparePhase, done: usize, _: usize| {
+            frames = done;
+            true
+        };
+        let whole = state_drift(&trained, poses, 1.0, &carried, poses.len(), &mut say).unwrap();
+        assert_eq!(frames, poses.len());
+        assert_eq!((whole.mean_mm, whole.height_mm), (0.0, 0.0), "{whole:?}");
+        // A one-frame window forgets the motion: the dynamic branch's output changes.
+        let one = state_drift(&trained, poses, 1.0, &carried, 1, &mut |_, _, _| true).unwrap();
+        assert!(
+            one.mean_mm > 0.0 && one.max_frame_mm >= one.mean_mm,
+            "{one:?}"
+        );
+        // Cancelling stops it.
+        assert!(state_drift(&trained, poses, 1.0, &carried, 1, &mut |_, _, _| false).is_err());
+    }
+
+    #[test]
     fn the_reference_is_cached_and_a_changed_garment_is_refused() {
         let dir = tempfile::tempdir().unwrap();
         let run = dir.path().join("run");
@@ -1161,8 +1210,10 @@ pinning = true
         let trained = load_trained(&run).unwrap();
         let mut simulated = 0;
         let first = compare(&trained, Some("walk"), &quick(), &mut |p| {
-            simulated +=
-                usize::from(p.phase != ComparePhase::Network && p.phase != ComparePhase::Metrics);
+            simulated += usize::from(matches!(
+                p.phase,
+                ComparePhase::Simulating | ComparePhase::SimulatingStatic
+            ));
             true
         })
         .unwrap();
@@ -1181,9 +1232,10 @@ pinning = true
         .unwrap();
         assert!(second.motions[0].reference.cached);
         assert!(
-            events
-                .iter()
-                .all(|p| matches!(p, ComparePhase::Network | ComparePhase::Metrics)),
+            events.iter().all(|p| matches!(
+                p,
+                ComparePhase::Network | ComparePhase::Drift | ComparePhase::Metrics
+            )),
             "{events:?}"
         );
         assert_eq!(first.motions[0].measures, second.motions[0].measures);

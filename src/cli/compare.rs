@@ -33,6 +33,10 @@ pub struct CompareArgs {
     /// Simulate again even when RUN/reference/ holds this reference.
     #[arg(long)]
     pub no_cache: bool,
+    /// Skip the GRU state's drift (the network replayed one training window before each
+    /// frame, which costs about one play of the motion per frame of a window).
+    #[arg(long)]
+    pub no_drift: bool,
     /// Print the report as JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -53,6 +57,7 @@ pub fn run(args: CompareArgs) -> anyhow::Result<()> {
         iterations: args.iterations,
         settle_secs: args.settle,
         use_cache: !args.no_cache,
+        drift: !args.no_drift,
         ..Default::default()
     };
     options.validate()?;
@@ -111,7 +116,9 @@ pub fn table(report: &CompareReport) -> String {
         "still frame: every joint slower than {} m/s for the last {} s; swing: mean distance \
          from the quasi-static result (network at w = 0, simulator without dynamics); slip: \
          the part of a difference that is a rigid motion of the whole garment (a frictionless \
-         garment slides over the body), shape: what is left after it",
+         garment slides over the body), shape: what is left after it; state drift: the \
+         network with its GRU state carried over the motion against the same network \
+         restarted one training window (and burn-in) before each frame",
         o.still_speed_m_per_s, o.still_window_secs
     );
     for m in &report.motions {

@@ -20,6 +20,10 @@
 //! - **rigid slip and shape** ([`rigid_split`]): the distance and both swings after each
 //!   frame's best rigid motion of the whole garment, which a frictionless garment's sliding
 //!   over the body makes up much of;
+//! - the **state drift** ([`state_drift`]): the network's frames with the GRU state carried
+//!   over the whole motion against the same network restarted one training window (and its
+//!   burn-in) before each frame, which shows a recurrent state that wanders where training
+//!   never took it;
 //! - the paper's §4.2 **metrics** of both sequences (as `eval`).
 //!
 //! The reference is simulated with the report's reference settings (200 L-BFGS iterations per
@@ -27,12 +31,14 @@
 //! (see [`reference_for`]).
 
 mod cache;
+mod drift;
 mod measure;
 mod record;
 mod rigid;
 mod rows;
 
 pub use cache::{REFERENCE_TOLERANCE, Reference, reference_dir, reference_for};
+pub use drift::{StateDrift, drift_window_frames, state_drift};
 pub use measure::{
     Amplitude, AmplitudeStats, DistanceStats, HEM_BAND, HemComparison, HemPair, MotionMeasures,
     Sequences, compare_frames, distance_stats, hem_radius_m, hem_vertices, joint_speeds_m_per_s,
@@ -78,6 +84,9 @@ pub struct CompareOptions {
     pub still_window_secs: f32,
     /// Read and write the reference cache under `RUN/reference/`; default true.
     pub use_cache: bool,
+    /// Measure the GRU state's drift ([`state_drift`]; costs about one play of the motion
+    /// per frame of a training window); default true.
+    pub drift: bool,
 }
 
 impl Default for CompareOptions {
@@ -89,6 +98,7 @@ impl Default for CompareOptions {
             still_speed_m_per_s: 0.1,
             still_window_secs: 0.5,
             use_cache: true,
+            drift: true,
         }
     }
 }
@@ -147,6 +157,8 @@ pub enum ComparePhase {
     SimulatingStatic,
     /// Playing the network at `w` and at `w = 0`.
     Network,
+    /// Replaying the network in training windows ([`state_drift`]).
+    Drift,
     /// Measuring.
     Metrics,
 }
@@ -157,7 +169,8 @@ impl ComparePhase {
         match self {
             Self::Simulating => (0.0, 0.45),
             Self::SimulatingStatic => (0.45, 0.9),
-            Self::Network => (0.9, 0.97),
+            Self::Network => (0.9, 0.92),
+            Self::Drift => (0.92, 0.97),
             Self::Metrics => (0.97, 1.0),
         }
     }
@@ -168,6 +181,7 @@ impl ComparePhase {
             Self::Simulating => "simulating the reference",
             Self::SimulatingStatic => "simulating the quasi-static reference",
             Self::Network => "playing the network",
+            Self::Drift => "replaying the network in training windows",
             Self::Metrics => "measuring",
         }
     }
@@ -397,6 +411,18 @@ fn compare_motion(
     let fps = motion.fps;
     let reference = reference_for(trained, motion, options, say)?;
     let (network, network_static) = play_network(trained, &motion.frames, options.w, say)?;
+    let recurrent = trained.meta.model.encoder != neural_cloth_model::EncoderKind::StaticOnly;
+    let drift = match options.drift && recurrent && options.w > 0.0 {
+        true => Some(state_drift(
+            trained,
+            &motion.frames,
+            options.w,
+            &network,
+            drift_window_frames(trained),
+            say,
+        )?),
+        false => None,
+    };
     if !say(ComparePhase::Metrics, 0, 1) {
         return Err(PhysicsError::Cancelled {
             frames: motion.frames.len(),
@@ -410,7 +436,7 @@ fn compare_motion(
         options.still_speed_m_per_s,
         options.still_window_secs,
     );
-    let measures = measure_motion(
+    let mut measures = measure_motion(
         &scene.avatar,
         &scene.garment,
         &motion.frames,
@@ -422,6 +448,7 @@ fn compare_motion(
             simulator_static: &reference.quasi_static,
         },
     )?;
+    measures.drift = drift;
     let bodies = trained.bodies_of(motion)?;
     let model = scene.fabric.cloth_model;
     let mut network_metrics =

@@ -238,6 +238,18 @@ fn render_verdicts(s: &mut String, checks: &[TrainingCheck]) {
                 );
             }
         }
+        // Not a target either: how far the GRU state carried over the whole motion takes the
+        // frames from those of the same network restarted one training window before each.
+        if let Some(drift) = m.drift {
+            row(
+                "(diagnostic) GRU state drift, carried against windowed",
+                format!(
+                    "{:.1} mm (worst frame {:.1}, height {:+.1}; window {} frames)",
+                    drift.mean_mm, drift.max_frame_mm, drift.height_mm, drift.window_frames
+                ),
+                None,
+            );
+        }
         row(
             "no dead network, no NaN",
             format!(
@@ -341,6 +353,24 @@ mod tests {
         assert!(s.contains("| (diagnostic) distance after each frame's rigid fit | 22.5 mm | — |"));
         assert!(
             s.contains("12.8 / 18.6 mm (slip 3.8 / 28.5) | met |"),
+            "{s}"
+        );
+        assert!(!s.contains("GRU state drift"), "not measured, not shown");
+    }
+
+    #[test]
+    fn the_state_drift_is_shown_as_a_diagnostic() {
+        let mut c = check(1.0, 0.0, 0.0);
+        c.motion.measures.drift = Some(neural_cloth_train::compare::StateDrift {
+            window_frames: 63,
+            mean_mm: 7.6,
+            max_frame_mm: 9.0,
+            height_mm: 7.2,
+        });
+        let mut s = String::new();
+        render_training_checks(&mut s, &[c]);
+        assert!(
+            s.contains("| (diagnostic) GRU state drift, carried against windowed | 7.6 mm (worst frame 9.0, height +7.2; window 63 frames) | — |"),
             "{s}"
         );
     }

@@ -282,6 +282,11 @@ pub struct MotionMeasures {
     /// recorded before it was measured, and when a frame is not finite).
     #[serde(default)]
     pub rigid: Option<super::RigidSplit>,
+    /// The GRU state carried over the motion against windowed replays ([`super::state_drift`];
+    /// `None` in checks recorded before it was measured, at `w = 0` and without a dynamic
+    /// branch).
+    #[serde(default)]
+    pub drift: Option<super::StateDrift>,
 }
 
 /// Measures `seq` on `poses` (one frame each) with the still flags `still`.
@@ -359,6 +364,7 @@ pub fn measure_motion(
             seq.simulator,
             seq.simulator_static,
         )?,
+        drift: None,
     })
 }
 

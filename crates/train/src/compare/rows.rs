@@ -48,7 +48,8 @@ fn row(label: &'static str, values: [Option<f64>; 3], decimals: usize) -> Measur
 
 impl MotionMeasures {
     /// The geometric rows: distances, swings, the rigid split (all frames only: a frame's
-    /// best rigid motion is fitted per frame) and the hem radii (still and moving only).
+    /// best rigid motion is fitted per frame), the GRU state's drift (all frames only) and the
+    /// hem radii (still and moving only).
     pub fn rows(&self) -> Vec<MeasureRow> {
         let mut rows = vec![
             row(
@@ -83,6 +84,15 @@ impl MotionMeasures {
                 ("slip simulator, mm", rigid.simulator_slip_mm),
                 ("shape swing network, mm", rigid.network_shape_swing_mm),
                 ("shape swing simulator, mm", rigid.simulator_shape_swing_mm),
+            ] {
+                rows.push(row(label, [Some(value), None, None], 1));
+            }
+        }
+        if let Some(drift) = &self.drift {
+            for (label, value) in [
+                ("state drift, mm", drift.mean_mm),
+                ("state drift worst frame, mm", drift.max_frame_mm),
+                ("state drift height, mm", drift.height_mm),
             ] {
                 rows.push(row(label, [Some(value), None, None], 1));
             }
@@ -172,6 +182,7 @@ mod tests {
             },
             hem: None,
             rigid: None,
+            drift: None,
         };
         let rows = m.rows();
         assert_eq!(
@@ -183,5 +194,18 @@ mod tests {
         assert_eq!(rows[1].label, "distance p95, mm");
         assert_eq!(rows[3].values, [Some(1.0), None, Some(1.5)]);
         assert_eq!(rows[3].cells(), ["1.0", "—", "1.5"]);
+        let drifting = MotionMeasures {
+            drift: Some(super::super::StateDrift {
+                window_frames: 18,
+                mean_mm: 7.6,
+                max_frame_mm: 9.0,
+                height_mm: 7.2,
+            }),
+            ..m
+        };
+        let rows = drifting.rows();
+        assert_eq!(rows.len(), 7, "the drift adds three rows");
+        assert_eq!(rows[4].label, "state drift, mm");
+        assert_eq!(rows[6].cells(), ["7.2", "—", "—"]);
     }
 }
