@@ -153,6 +153,11 @@ pub struct TrainArgs {
     /// default: every window trains it; see docs/TRAINING.md).
     #[arg(long)]
     pub static_from_still: bool,
+    /// Keep every training frame's posed body once built (faster steps, memory that grows to
+    /// about 0.8 GB on the default scene; default: each step builds its bodies and drops
+    /// them).
+    #[arg(long)]
+    pub keep_posed_bodies: bool,
     /// Keep zero initial biases (no data-dependent centring of the layers).
     #[arg(long)]
     pub no_centre_init: bool,
@@ -319,6 +324,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if args.static_from_still {
         train.static_from_still = true;
+    }
+    if args.keep_posed_bodies {
+        train.keep_posed_bodies = true;
     }
     if let Some(f) = args.augmentation {
         train.augmentation_fraction = f;

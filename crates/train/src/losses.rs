@@ -26,11 +26,7 @@ pub fn friction_contacts(
         return Ok(None);
     }
     let bodies = |frames: Vec<(usize, usize)>| -> Result<BodyBatch, TrainError> {
-        let bodies = frames
-            .into_iter()
-            .map(|(m, f)| data.body(avatar, m, f))
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(BodyBatch::new(bodies))
+        Ok(BodyBatch::new(data.bodies(avatar, &frames)?))
     };
     let now = batch.stacked_frames(2);
     let mut before = batch.stacked_frames(1);

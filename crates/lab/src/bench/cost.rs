@@ -341,6 +341,18 @@ pub fn measure_term_costs(
             fused(&bw, x, &[collide], Some(&c))
         }),
     )?;
+    // What the trainer pays per step when the posed bodies are not kept between steps: one
+    // body (normals and query tree) per sample, built serially as `Dataset::body` does.
+    add(
+        "posed bodies built for the batch (no query)",
+        &|x| {
+            let built = (0..batch)
+                .map(|_| PosedBody::new(body_mesh.positions.clone(), &body_mesh.faces))
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok(x.clone().sum().mul_scalar(0.0) + x.clone().sum().mul_scalar(built.len() as f32))
+        },
+        None,
+    )?;
     add(
         "gravity",
         &|x| Ok(neural_cloth_physics::energies::gravity(x, rt).sum()),

@@ -295,11 +295,7 @@ impl NeuralSession {
         if !self.terms.effects().collision {
             return Ok(None);
         }
-        let bodies = batch
-            .stacked_frames(first)
-            .into_iter()
-            .map(|(m, f)| data.body(&self.avatar, m, f))
-            .collect::<Result<Vec<_>, _>>()?;
+        let bodies = data.bodies(&self.avatar, &batch.stacked_frames(first))?;
         Ok(Some(BodyBatch::new(bodies)))
     }
 
@@ -423,6 +419,9 @@ impl Session for NeuralSession {
         )?;
         self.filter.count_step();
         let metrics = self.step_metrics(&x, contacts, friction, b, predicted)?;
+        if !self.config.keep_posed_bodies {
+            self.train.forget_bodies();
+        }
         Ok(self.record(&metrics, loss))
     }
 
