@@ -83,6 +83,10 @@ pub struct TrainArgs {
     /// measured: docs/TRAINING.md round 10).
     #[arg(long, value_name = "SECS")]
     pub gru_burn_in: Option<f32>,
+    /// Draw each step's burn-in length uniformly from none to --gru-burn-in (windows from a
+    /// zero state and from a carried one alike).
+    #[arg(long)]
+    pub gru_burn_in_random: bool,
     /// Training frame rate in frames per second, 5..=240, replacing the scene's
     /// `training_fps` (default: the scene's, 30 in the built-in scene); a resumed run keeps
     /// the rate it was trained at.
@@ -288,6 +292,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(secs) = args.gru_burn_in {
         train.gru_burn_in_secs = secs;
+    }
+    if args.gru_burn_in_random {
+        train.gru_burn_in_random = true;
     }
     if let Some(s) = args.seed {
         train.seed = s;

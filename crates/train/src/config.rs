@@ -45,6 +45,11 @@ pub struct TrainConfig {
     /// before a motion's start are still frames (a zero state stays zero). 0..=10, default 0
     /// (every window from a zero state, the paper's training). Not yet measured.
     pub gru_burn_in_secs: f32,
+    /// Draw each step's burn-in length uniformly from none to [`Self::gru_burn_in_secs`]
+    /// (validation keeps the whole), so that training sees windows from a zero state and
+    /// from a carried one alike. Default false.
+    #[serde(default)]
+    pub gru_burn_in_random: bool,
     /// Adam learning rate; (0, 1], default 1e-3.
     pub learning_rate: f64,
     /// Stop after this many optimiser steps (None = no limit). Default None.
@@ -172,6 +177,7 @@ impl Default for TrainConfig {
             batch_size: 16,
             window_secs: 0.5,
             gru_burn_in_secs: 0.0,
+            gru_burn_in_random: false,
             learning_rate: 1e-3,
             max_steps: None,
             max_minutes: None,

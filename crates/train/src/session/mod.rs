@@ -17,8 +17,8 @@ use std::sync::Arc;
 use burn::module::Module;
 use burn::optim::GradientsParams;
 use burn::tensor::{Bytes, Device, Tensor, TensorData};
-use rand::SeedableRng;
 use rand::rngs::StdRng;
+use rand::{RngExt, SeedableRng};
 
 use neural_cloth_core::scene::{Avatar, Garment};
 use neural_cloth_model::activity::{Activity, revive_dead_units, unit_activity};
@@ -334,6 +334,18 @@ impl NeuralSession {
         self.config.window_frames(self.fps)
     }
 
+    /// Frames of a training step's batch: [`Self::batch_frames`], or with
+    /// [`TrainConfig::gru_burn_in_random`] the window and a burn-in whose length is drawn
+    /// for the step, uniformly from none to the configured one.
+    fn step_batch_frames(&mut self) -> usize {
+        let most = self.config.burn_in_frames(self.fps);
+        let burn = match self.config.gru_burn_in_random && most > 0 {
+            true => self.rng.random_range(0..=most),
+            false => most,
+        };
+        self.window_frames() + burn
+    }
+
     /// Frames of a batch: the window and the GRU burn-in before it.
     fn batch_frames(&self) -> usize {
         self.window_frames() + self.config.burn_in_frames(self.fps)
@@ -375,13 +387,10 @@ impl Session for NeuralSession {
             0
         };
         let predicted = self.config.loss_frames + 2;
-        let batch = self.train.batch_with_still(
-            &windows,
-            still,
-            self.batch_frames(),
-            predicted,
-            &self.garment.skin,
-        );
+        let frames = self.step_batch_frames();
+        let batch =
+            self.train
+                .batch_with_still(&windows, still, frames, predicted, &self.garment.skin);
         let (x_net, blended) = self.predict(&batch, still, augment);
         // With the gradient filter, the losses are taken on a detached copy of the posed
         // frames; their gradient is filtered and handed to the network through a surrogate.
@@ -566,3 +575,6 @@ impl Session for NeuralSession {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests;
