@@ -79,8 +79,9 @@ pub struct TrainArgs {
     #[arg(long)]
     pub window: Option<f32>,
     /// Seconds of motion before each window over which the GRU runs without gradient to set
-    /// the window's starting state, as inference carries it (0..=10, default 0; not yet
-    /// measured: docs/TRAINING.md round 10).
+    /// the window's starting state, as inference carries it (0..=10, default 0; 1.5 ends the
+    /// drift of long t-shirt runs but loses the skirt's lag on some seeds: docs/TRAINING.md
+    /// round 11).
     #[arg(long, value_name = "SECS")]
     pub gru_burn_in: Option<f32>,
     /// Draw each step's burn-in length uniformly from none to --gru-burn-in (windows from a
