@@ -529,14 +529,18 @@ impl Session for NeuralSession {
     }
 
     fn checkpoint(&mut self, step: u64, history: &MetricHistory) -> Result<PathBuf, TrainError> {
-        let model_bytes = self.model.clone().into_record().into_bytes()?;
-        let optim_bytes = self.optim.to_bytes()?;
         let state = CheckpointState {
             step,
             learning_rate: self.learning_rate,
         };
-        self.run
-            .write_checkpoint(state, &model_bytes, &optim_bytes, history)
+        let model = self.model.clone();
+        let optim = &self.optim;
+        self.run.write_checkpoint_from(
+            state,
+            Box::new(move || Ok(model.into_record().into_bytes()?)),
+            Box::new(|| Ok(optim.to_bytes()?)),
+            history,
+        )
     }
 
     fn restore_last_checkpoint(&mut self) -> Result<u64, TrainError> {
