@@ -566,6 +566,39 @@ fn train_pause_resume_stop_through_the_buttons() {
 }
 
 #[test]
+fn a_run_on_a_scene_changed_since_says_so_issue_15() {
+    // Issue 15: after loading another garment the preview said "untrained model" while the
+    // step counter ran, and nothing said what was training.
+    let mut h = harness(Some(Box::new(FakeLauncher {
+        requests: Arc::new(std::sync::Mutex::new(Vec::new())),
+    })));
+    let says = "the run trains the scene as it was when Train was pressed; the preview shows \
+                the changed scene, untrained (Reset, then Train, to train it)";
+    click(&mut h, "Train");
+    h.step();
+    assert_eq!(*h.state().state.training.state(), TrainingState::Running);
+    h.run_steps(2);
+    assert!(
+        h.query_by_label(says).is_none(),
+        "the scene has not changed"
+    );
+    // Another set of effects changes the scene the network is built for.
+    let state = &mut h.state_mut().state;
+    state.scene.config.effects.bending = !state.scene.config.effects.bending;
+    state.effects_changed();
+    assert!(h.state().state.trains_another_scene());
+    h.run_steps(2);
+    h.get_by_label(says);
+    // Stopped, the run no longer trains anything.
+    click(&mut h, "Stop");
+    step_until(&mut h, "the run to finish", |app| {
+        matches!(app.state.training.state(), TrainingState::Finished(_))
+    });
+    h.run_steps(2);
+    assert!(h.query_by_label(says).is_none());
+}
+
+#[test]
 fn without_a_trainer_train_reports_an_error() {
     let mut h = harness(None);
     click(&mut h, "Train");

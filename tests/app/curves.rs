@@ -1,7 +1,8 @@
 //! Curves people can read (issue 15): smoothed lines over faint raw values, validation as
 //! solid dots in a colour of its own, log axes for metrics spanning decades, a y range the
 //! first steps cannot set, labelled markers where a setting changed during training, and the
-//! "improving / flat / diverging" indicator of the validation loss.
+//! "improving / flat / diverging" indicator of the validation loss, and the last check
+//! against simulation.
 
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
@@ -83,4 +84,62 @@ fn curves_show_the_trend_and_where_a_setting_changed() {
     let markers = &h.state().state.training.markers;
     assert_eq!(markers.len(), 2, "{markers:?}");
     h.get_by_label("learning rate 5.0e-4 at step 300");
+}
+
+#[test]
+fn curves_show_the_last_check_against_simulation() {
+    use neural_cloth::train::compare::{
+        Amplitude, AmplitudeStats, CompareOptions, CompareReport, DistanceStats, MetricPair,
+        MotionComparison, MotionMeasures, ReferenceInfo, StateDrift,
+    };
+    let mut app = NeuralClothApp::new(&egui::Context::default(), None, options(None))
+        .expect("the default scene builds");
+    feed_run(&mut app);
+    let swing = |moving_mm| AmplitudeStats {
+        all_mm: moving_mm,
+        still_mm: None,
+        moving_mm: Some(moving_mm),
+    };
+    let measures = MotionMeasures {
+        frames: 181,
+        all: DistanceStats {
+            frames: 181,
+            mean_mm: 22.2,
+            p95_mm: 41.1,
+        },
+        amplitude: Amplitude {
+            network: swing(19.2),
+            simulator: swing(32.2),
+        },
+        drift: Some(StateDrift {
+            window_frames: 18,
+            mean_mm: 0.3,
+            max_frame_mm: 0.6,
+            height_mm: 0.0,
+        }),
+        ..Default::default()
+    };
+    app.cost.check.job.result = Some(Ok(CompareReport {
+        run: "run".into(),
+        step: 400,
+        garment: "tshirt".into(),
+        vertices: 3400,
+        fps: 30.0,
+        below_hips: false,
+        options: CompareOptions::default(),
+        motions: vec![MotionComparison {
+            name: "spin".into(),
+            measures,
+            metrics: MetricPair::default(),
+            reference: ReferenceInfo::default(),
+        }],
+    }));
+    let mut h = Harness::builder()
+        .with_size(PANEL)
+        .with_pixels_per_point(1.0)
+        .build_ui_state(|ui, app: &mut NeuralClothApp| app.plot_ui(ui), app);
+    h.run();
+    h.get_by_label(
+        "checked against simulation at step 400: spin 22.2 mm (swing 19.2 / 32.2 mm, drift 0.3 mm)",
+    );
 }

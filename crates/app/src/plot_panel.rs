@@ -1,8 +1,8 @@
 //! The metric curves panel (egui_plot), live while training runs: each metric's raw per-step
 //! values faint behind their smoothed line, validation passes as solid markers in a colour of
 //! their own, a log axis for a metric spanning decades, a y range the first steps cannot set,
-//! labelled vertical markers where a setting changed, and an "improving / flat / diverging"
-//! verdict on the validation loss.
+//! labelled vertical markers where a setting changed, an "improving / flat / diverging"
+//! verdict on the validation loss, and the last check against simulation.
 
 use egui_plot::{Line, LineStyle, MarkerShape, Plot, PlotPoint, Points, Text, VLine};
 
@@ -54,6 +54,10 @@ impl NeuralClothApp {
             trend_ui(ui, loss_trend(history));
             markers_ui(ui, markers);
         });
+        if let Some(Ok(report)) = &self.cost.check.job.result {
+            ui.weak(super::sim_check::check_summary(report))
+                .on_hover_text("the last Check against simulation (Cost panel)");
+        }
         let x_axis = curves.x_axis;
         let shown: Vec<(usize, Metric)> = Metric::ALL
             .iter()

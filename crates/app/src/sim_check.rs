@@ -33,6 +33,39 @@ impl Default for SimCheck {
     }
 }
 
+/// One line for the curves: the step checked and, per motion, the mean distance from the
+/// simulator, the swings of both and the GRU state's drift where measured, e.g. "checked
+/// against simulation at step 1200: spin 22.2 mm (swing 19.2 / 32.2 mm, drift 0.3 mm)".
+pub fn check_summary(report: &CompareReport) -> String {
+    let motions: Vec<String> = report
+        .motions
+        .iter()
+        .map(|m| {
+            let s = &m.measures;
+            let mut text = format!("{} {:.1} mm", m.name, s.all.mean_mm);
+            let mut details = Vec::new();
+            if let (Some(net), Some(sim)) = (
+                s.amplitude.network.moving_mm,
+                s.amplitude.simulator.moving_mm,
+            ) {
+                details.push(format!("swing {net:.1} / {sim:.1} mm"));
+            }
+            if let Some(d) = s.drift {
+                details.push(format!("drift {:.1} mm", d.mean_mm));
+            }
+            if !details.is_empty() {
+                text.push_str(&format!(" ({})", details.join(", ")));
+            }
+            text
+        })
+        .collect();
+    format!(
+        "checked against simulation at step {}: {}",
+        report.step,
+        motions.join("; ")
+    )
+}
+
 /// Why the check cannot run on `run_dir` (`None`: it can): no run yet, or no checkpoint in it.
 pub fn unavailable_reason(run_dir: Option<&Path>) -> Option<String> {
     let Some(dir) = run_dir else {

@@ -310,6 +310,17 @@ impl AppState {
         self.scene.revision += 1;
     }
 
+    /// True while a run started here trains a scene that has changed since (another garment,
+    /// avatar or motion, or other effects): its step counter runs, but its weights no longer
+    /// fit the scene on screen, whose preview is untrained.
+    pub fn trains_another_scene(&self) -> bool {
+        self.training.state().is_active()
+            && self
+                .training
+                .scene_revision
+                .is_some_and(|r| r != self.scene.revision)
+    }
+
     /// Stops and forgets the training run (curves, preview weights); its folder stays.
     pub fn reset_training(&mut self) {
         self.training.reset();
@@ -371,7 +382,10 @@ impl AppState {
             scene_config: self.scene.config.clone(),
         };
         match self.training.start(request, notify) {
-            Ok(()) => self.message(Level::Info, "training started"),
+            Ok(()) => {
+                self.training.scene_revision = Some(self.scene.revision);
+                self.message(Level::Info, "training started");
+            }
             Err(e) => self.message(Level::Error, format!("cannot start training: {e}")),
         }
     }

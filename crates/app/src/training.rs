@@ -118,6 +118,9 @@ pub struct TrainingControl {
     pub latest_weights: Option<(u64, Arc<ModelArtifact>)>,
     /// Run directory of the current or last run.
     pub run_dir: Option<PathBuf>,
+    /// The scene revision ([`crate::state::SceneState::revision`]) the current or last run
+    /// was started on (`None`: no run started from this app since the last reset).
+    pub scene_revision: Option<u64>,
     /// Last checkpoint written.
     pub last_checkpoint: Option<PathBuf>,
     /// Recent messages (applied settings, rollbacks, errors), newest last, at most 50.
@@ -154,6 +157,7 @@ impl TrainingControl {
             markers: Vec::new(),
             latest_weights: None,
             run_dir: None,
+            scene_revision: None,
             last_checkpoint: None,
             log: Vec::new(),
             handle: None,
@@ -247,6 +251,7 @@ impl TrainingControl {
                 self.note(format!("could not stop the trainer in the background: {e}"));
             }
         }
+        self.scene_revision = None;
         self.state = TrainingState::Idle;
         self.progress = Progress::default();
         self.history = MetricHistory::default();

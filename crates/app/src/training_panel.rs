@@ -112,6 +112,13 @@ impl NeuralClothApp {
                     }
                 }
                 ui.weak(format!("preview: {}", self.state.preview.describe()));
+                if self.state.trains_another_scene() {
+                    ui.colored_label(
+                        egui::Color32::from_rgb(255, 170, 60),
+                        "the run trains the scene as it was when Train was pressed; the preview \
+                         shows the changed scene, untrained (Reset, then Train, to train it)",
+                    );
+                }
             });
     }
 }
