@@ -120,7 +120,8 @@ pub struct TrainConfig {
     /// a 6000-vertex avatar) once built, instead of building each step's bodies anew (in
     /// parallel) and dropping them after the step. Keeping them saves the builds (about
     /// 0.65 ms a body, two bodies a window) and costs memory that grows with the frames the
-    /// run has visited: about 0.8 GB on the default scene. Default false.
+    /// run has visited: towards 0.8 GB on the default scene (615 MB more peak memory after
+    /// 300 steps, docs/BENCHMARKS.md). Default false.
     pub keep_posed_bodies: bool,
     /// A validation pass with at least this percentage of dead units in one revivable layer
     /// (decoder, static hidden layers) triggers the stall remedy (revive the dead units); 1..=100, default 75.

@@ -349,7 +349,10 @@ pub fn measure_term_costs(
             let built = (0..batch)
                 .map(|_| PosedBody::new(body_mesh.positions.clone(), &body_mesh.faces))
                 .collect::<Result<Vec<_>, _>>()?;
-            Ok(x.clone().sum().mul_scalar(0.0) + x.clone().sum().mul_scalar(built.len() as f32))
+            Ok(x.clone()
+                .sum()
+                .mul_scalar(0.0)
+                .add_scalar(built.len() as f32))
         },
         None,
     )?;
