@@ -161,6 +161,38 @@ fn an_uninterrupted_run_equals_a_resumed_one() {
 }
 
 #[test]
+fn the_streamed_record_is_the_record_and_the_moments_go_on() {
+    let d = device();
+    let mut model = small(&d);
+    let mut optim = TrainOptimiser::new(true);
+    for k in 0..2 {
+        fused_step(&mut optim, &mut model, k, &d);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("optimizer.bpk");
+    optim.write_file(&path).unwrap();
+    let bytes = optim.to_bytes().unwrap();
+    assert_eq!(std::fs::read(&path).unwrap(), bytes.to_vec());
+    // Steps after the write update the moments the record shared (no stale copy), and a
+    // resume from the file follows the same path.
+    let mut resumed_model = model.clone();
+    let saved = Bytes::from_bytes_vec(std::fs::read(&path).unwrap());
+    let mut resumed = TrainOptimiser::new(true).load_bytes(saved).unwrap();
+    for k in 2..4 {
+        fused_step(&mut optim, &mut model, k, &d);
+        fused_step(&mut resumed, &mut resumed_model, k, &d);
+    }
+    assert_eq!(values(&model), values(&resumed_model));
+    assert_ne!(optim.to_bytes().unwrap().to_vec(), bytes.to_vec());
+    let burn = TrainOptimiser::new(false);
+    let e = burn
+        .write_file(&dir.path().join("no/such/folder/optimizer.bpk"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.ends_with("optimizer.bpk"), "{e}");
+}
+
+#[test]
 fn a_state_of_another_network_is_refused_by_name() {
     let d = device();
     let mut model = small(&d);

@@ -16,7 +16,7 @@
 //! before checksums were recorded (no `files` in `state.json`) are read without the check.
 
 use std::collections::BTreeMap;
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -51,9 +51,9 @@ struct StateFile {
     files: BTreeMap<String, FileCheck>,
 }
 
-/// The bytes of one checkpoint file, made when the file is written
-/// ([`RunDir::write_checkpoint_from`]).
-pub type FileBytes<'a> = Box<dyn FnOnce() -> Result<burn::tensor::Bytes, TrainError> + 'a>;
+/// Writes one checkpoint file, complete and synced, at the path it is given (a temporary in
+/// the checkpoint's folder; [`RunDir::write_checkpoint_from`]).
+pub type FileWriter<'a> = Box<dyn FnOnce(&Path) -> Result<(), TrainError> + 'a>;
 
 /// What a fallback over checkpoints loaded, and the checkpoints it had to skip.
 #[derive(Debug)]
@@ -69,8 +69,19 @@ pub struct Loaded<T> {
 /// FNV-1a over little-endian 64-bit words (then the trailing bytes), seeded with the length.
 /// Any change of a single word changes the result (each round is a bijection of the state).
 pub fn checksum(bytes: &[u8]) -> u64 {
+    fold_words(checksum_seed(bytes.len() as u64), bytes)
+}
+
+/// The state [`checksum`] starts from for `len` bytes.
+fn checksum_seed(len: u64) -> u64 {
+    0xcbf29ce484222325 ^ len
+}
+
+/// Folds `bytes` into the checksum state `h`: whole 64-bit words, then the trailing bytes
+/// one by one (so only the last piece of a stream may have a length that is not a multiple
+/// of 8).
+fn fold_words(mut h: u64, bytes: &[u8]) -> u64 {
     const PRIME: u64 = 0x100000001b3;
-    let mut h: u64 = 0xcbf29ce484222325 ^ bytes.len() as u64;
     let mut words = bytes.chunks_exact(8);
     for w in &mut words {
         let mut a = [0u8; 8];
@@ -81,6 +92,60 @@ pub fn checksum(bytes: &[u8]) -> u64 {
         h = (h ^ u64::from(*b)).wrapping_mul(PRIME);
     }
     h
+}
+
+/// Length and [`checksum`] of the file at `path`, read in 1 MiB pieces; errors name `shown`.
+fn check_file(path: &Path, shown: &Path) -> Result<FileCheck, TrainError> {
+    let io = |e| TrainError::io(e, shown);
+    let mut file = std::fs::File::open(path).map_err(io)?;
+    let len = file.metadata().map_err(io)?.len();
+    let mut h = checksum_seed(len);
+    let mut buffer = vec![0u8; 1 << 20];
+    let mut read_total = 0u64;
+    loop {
+        // Fill the whole buffer (short reads happen), so every piece but the last is whole words.
+        let mut filled = 0;
+        while filled < buffer.len() {
+            match file.read(&mut buffer[filled..]).map_err(io)? {
+                0 => break,
+                n => filled += n,
+            }
+        }
+        h = fold_words(h, &buffer[..filled]);
+        read_total += filled as u64;
+        if filled < buffer.len() {
+            break;
+        }
+    }
+    if read_total != len {
+        return Err(corrupt(
+            format!("read {read_total} bytes of a {len}-byte file"),
+            shown,
+        ));
+    }
+    Ok(FileCheck {
+        bytes: len,
+        checksum: h,
+    })
+}
+
+/// `message` without its mentions of `path`: `" 'PATH…'"` (a quoted name that starts with
+/// it, such as a writer's scratch file beside it) and a trailing `": PATH"`.
+fn without_path(message: &str, path: &Path) -> String {
+    let path = path.display().to_string();
+    let mut out = message
+        .strip_suffix(&format!(": {path}"))
+        .unwrap_or(message)
+        .to_string();
+    let quoted = format!(" '{path}");
+    while let Some(start) = out.find(&quoted) {
+        let after = start + quoted.len();
+        let Some(close) = out[after..].find('\'') else {
+            break;
+        };
+        out.replace_range(start..after + close + 1, "");
+    }
+    out
 }
 
 fn corrupt(reason: impl Into<String>, path: &Path) -> TrainError {
@@ -251,10 +316,9 @@ impl RunDir {
         )))
     }
 
-    /// Writes the checkpoint of `state.step` (replacing one of the same step), the metric
-    /// history and `latest.json`, then prunes old checkpoints. Returns the checkpoint folder.
-    /// On error nothing partial is left and the previous checkpoints are intact.
-    pub fn write_checkpoint(
+    /// [`Self::write_checkpoint_from`] with the two files' bytes in hand.
+    #[cfg(test)]
+    pub(crate) fn write_checkpoint(
         &self,
         state: CheckpointState,
         model_bytes: &[u8],
@@ -263,37 +327,37 @@ impl RunDir {
     ) -> Result<PathBuf, TrainError> {
         self.write_checkpoint_from(
             state,
-            Box::new(|| Ok(burn::tensor::Bytes::from_bytes_vec(model_bytes.to_vec()))),
-            Box::new(|| {
-                Ok(burn::tensor::Bytes::from_bytes_vec(
-                    optimizer_bytes.to_vec(),
-                ))
-            }),
+            Box::new(|p| write_synced(p, model_bytes, p)),
+            Box::new(|p| write_synced(p, optimizer_bytes, p)),
             history,
         )
     }
 
-    /// [`Self::write_checkpoint`] with each file's bytes made just before it is written and
-    /// dropped after, so that the model's and the optimiser's bytes (about 108 MB each on
-    /// the default scene) are never held at once.
+    /// Writes the checkpoint of `state.step` (replacing one of the same step), the metric
+    /// history and `latest.json`, then prunes old checkpoints. Returns the checkpoint folder.
+    /// On error nothing partial is left and the previous checkpoints are intact.
+    ///
+    /// Each file is written by its own writer, one after the other, so that a writer may
+    /// stream its file (the optimiser's moments, 108 MB on the default scene, are never copied
+    /// whole) and the two files' data are never held at once. Each file's length and checksum
+    /// are read back from the disk.
     pub fn write_checkpoint_from(
         &self,
         state: CheckpointState,
-        model_bytes: FileBytes<'_>,
-        optimizer_bytes: FileBytes<'_>,
+        model: FileWriter<'_>,
+        optimizer: FileWriter<'_>,
         history: &MetricHistory,
     ) -> Result<PathBuf, TrainError> {
         let path = self.checkpoint_path(state.step);
         let dir = AtomicDir::create(&path)?;
         let mut files = BTreeMap::new();
-        for (name, make) in [(MODEL_FILE, model_bytes), (OPTIMIZER_FILE, optimizer_bytes)] {
-            let bytes = make()?;
-            write_synced(&dir.temp_path().join(name), &bytes, &path.join(name))?;
-            let check = FileCheck {
-                bytes: bytes.len() as u64,
-                checksum: checksum(&bytes),
-            };
-            files.insert(name.to_string(), check);
+        for (name, write) in [(MODEL_FILE, model), (OPTIMIZER_FILE, optimizer)] {
+            let temp = dir.temp_path().join(name);
+            write(&temp).map_err(|e| TrainError::WriteFile {
+                reason: without_path(&e.to_string(), &temp),
+                path: path.join(name),
+            })?;
+            files.insert(name.to_string(), check_file(&temp, &path.join(name))?);
         }
         let state_json = serde_json::to_vec_pretty(&StateFile { state, files })
             .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
@@ -423,6 +487,44 @@ mod tests {
         }
         assert_ne!(checksum(&data[..1002]), sum);
         assert_ne!(checksum(&[0, 0]), checksum(&[0]));
+    }
+
+    #[test]
+    fn a_writer_failure_leaves_out_the_temporary() {
+        let temp = Path::new("/r/checkpoints/.step-3.tmp-9/model.bpk");
+        assert_eq!(
+            without_path(
+                "I/O error: cannot write to '/r/checkpoints/.step-3.tmp-9/model.bpk.9-1.tmp': \
+                 No space left on device (os error 28)",
+                temp
+            ),
+            "I/O error: cannot write to: No space left on device (os error 28)"
+        );
+        assert_eq!(
+            without_path(
+                "No space left on device (os error 28): /r/checkpoints/.step-3.tmp-9/model.bpk",
+                temp
+            ),
+            "No space left on device (os error 28)"
+        );
+        assert_eq!(without_path("other 'x': y", temp), "other 'x': y");
+    }
+
+    #[test]
+    fn a_file_read_in_pieces_has_the_checksum_of_its_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        // Sizes around the 1 MiB piece: whole pieces, a trailing odd piece, a short file.
+        for len in [0usize, 13, (1 << 20) - 3, 1 << 20, 3 * (1 << 20) + 5] {
+            let data: Vec<u8> = (0..len).map(|i| (i * 131 % 253) as u8).collect();
+            let path = dir.path().join(format!("f{len}"));
+            std::fs::write(&path, &data).unwrap();
+            let check = check_file(&path, &path).unwrap();
+            assert_eq!(check.bytes, len as u64);
+            assert_eq!(check.checksum, checksum(&data), "{len} bytes");
+        }
+        let missing = dir.path().join("missing.bpk");
+        let e = check_file(&missing, &missing).unwrap_err().to_string();
+        assert!(e.ends_with("missing.bpk"), "{e}");
     }
 
     #[test]

@@ -103,6 +103,15 @@ pub enum TrainError {
         /// The file concerned.
         path: PathBuf,
     },
+    /// A checkpoint file could not be written (the reason without the temporary it was
+    /// written to).
+    #[error("{reason}: {}", path.display())]
+    WriteFile {
+        /// What failed.
+        reason: String,
+        /// The file's final path.
+        path: PathBuf,
+    },
     /// The file system refused.
     #[error("{source}: {}", path.display())]
     File {

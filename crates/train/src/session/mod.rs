@@ -537,8 +537,8 @@ impl Session for NeuralSession {
         let optim = &self.optim;
         self.run.write_checkpoint_from(
             state,
-            Box::new(move || Ok(model.into_record().into_bytes()?)),
-            Box::new(|| Ok(optim.to_bytes()?)),
+            Box::new(move |path| Ok(model.into_record().save(path)?)),
+            Box::new(|path| Ok(optim.write_file(path)?)),
             history,
         )
     }
