@@ -954,8 +954,8 @@ mod compare {
     use neural_cloth::scene::config::SceneConfig;
     use neural_cloth::scene::procedural::build_builtin;
     use neural_cloth::train::compare::{
-        CompareOptions, ComparePhase, Sequences, compare, compare_frames, measure_motion,
-        reaches_below_hips, reference_dir, state_drift, still_frames,
+        CompareOptions, ComparePhase, Sequences, compare, compare_frames, measure_motion, one_step,
+        reaches_below_hips, reference_dir, reference_for, state_drift, still_frames,
     };
     use neural_cloth::train::{
         BackendKind, RunLocation, TrainConfig, TrainSetup, Trainer, device_for, load_trained,
@@ -1013,6 +1013,62 @@ pinning = true
         };
         let (_, result) = super::run_to_end(Trainer::spawn(setup, None).unwrap());
         assert_eq!(result.unwrap().steps, 2);
+    }
+
+    #[test]
+    fn one_step_from_the_simulators_own_frames_gives_its_frames() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = dir.path().join("run");
+        train_tiny(&run);
+        let trained = load_trained(&run).unwrap();
+        let motion = trained.scene.motions[0].0.resample(30.0).unwrap();
+        let options = quick();
+        let reference = reference_for(&trained, &motion, &options, &mut |_, _, _| true).unwrap();
+        let mut steps = 0;
+        let sim = one_step(
+            &trained,
+            &motion,
+            &reference.dynamic,
+            options.iterations,
+            &mut |phase, done, total| {
+                assert_eq!(phase, ComparePhase::OneStep);
+                assert!(done <= total);
+                steps = done;
+                true
+            },
+        )
+        .unwrap();
+        assert_eq!(sim.frames, motion.frames.len() - 2);
+        assert_eq!(steps, sim.frames, "progress reaches every frame");
+        assert!(sim.mean_mm < 0.01, "the simulator obeys itself: {sim:?}");
+        // Frames held back from where their history carries them are not physical: the step
+        // from the two before puts each one away from where it is.
+        let held: Vec<Vec<Vec3>> = (0..reference.dynamic.len())
+            .map(|k| reference.dynamic[k / 3 * 3].clone())
+            .collect();
+        let jerky = one_step(
+            &trained,
+            &motion,
+            &held,
+            options.iterations,
+            &mut |_, _, _| true,
+        )
+        .unwrap();
+        assert!(jerky.mean_mm > 10.0 * sim.mean_mm + 0.01, "{jerky:?}");
+        assert!(jerky.shape_mm.is_finite() && jerky.height_mm.is_finite());
+        // Cancelling stops it.
+        let cancelled = one_step(&trained, &motion, &held, 1, &mut |_, _, _| false);
+        assert!(cancelled.is_err());
+        // compare measures it when asked.
+        let asked = CompareOptions {
+            one_step: true,
+            ..quick()
+        };
+        let report = compare(&trained, Some("walk"), &asked, &mut |_| true).unwrap();
+        let step = report.motions[0].measures.one_step.expect("asked for");
+        assert!(step.mean_mm.is_finite() && step.mean_mm > 0.0, "{step:?}");
+        let plain = compare(&trained, Some("walk"), &quick(), &mut |_| true).unwrap();
+        assert!(plain.motions[0].measures.one_step.is_none());
     }
 
     #[test]

@@ -37,6 +37,11 @@ pub struct CompareArgs {
     /// frame, which costs about one play of the motion per frame of a window).
     #[arg(long)]
     pub no_drift: bool,
+    /// Also step the simulator once from each pair of the network's own frames and measure
+    /// how far the network's next frame is from that step (does it obey the physics frame by
+    /// frame, and which way does physics push it; costs about one simulation of the motion).
+    #[arg(long)]
+    pub one_step: bool,
     /// Print the report as JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -58,6 +63,7 @@ pub fn run(args: CompareArgs) -> anyhow::Result<()> {
         settle_secs: args.settle,
         use_cache: !args.no_cache,
         drift: !args.no_drift,
+        one_step: args.one_step,
         ..Default::default()
     };
     options.validate()?;
@@ -118,7 +124,9 @@ pub fn table(report: &CompareReport) -> String {
          the part of a difference that is a rigid motion of the whole garment (a frictionless \
          garment slides over the body), shape: what is left after it; state drift: the \
          network with its GRU state carried over the motion against the same network \
-         restarted one training window (and burn-in) before each frame",
+         restarted one training window (and burn-in) before each frame; one-step: each \
+         network frame against one simulator step from the network's two previous frames \
+         (turn with body < 0: physics holds the garment further back)",
         o.still_speed_m_per_s, o.still_window_secs
     );
     for m in &report.motions {

@@ -24,6 +24,9 @@
 //!   over the whole motion against the same network restarted one training window (and its
 //!   burn-in) before each frame, which shows a recurrent state that wanders where training
 //!   never took it;
+//! - the **one-step check** ([`one_step`], on request): each network frame against one
+//!   simulator step from the network's own two previous frames, which says whether the
+//!   network's motion obeys the physics frame by frame, and which way physics pushes it;
 //! - the paper's §4.2 **metrics** of both sequences (as `eval`).
 //!
 //! The reference is simulated with the report's reference settings (200 L-BFGS iterations per
@@ -33,6 +36,7 @@
 mod cache;
 mod drift;
 mod measure;
+mod one_step;
 mod record;
 mod rigid;
 mod rows;
@@ -44,6 +48,7 @@ pub use measure::{
     Sequences, compare_frames, distance_stats, hem_radius_m, hem_vertices, joint_speeds_m_per_s,
     mean_where, measure_motion, reaches_below_hips, still_frames,
 };
+pub use one_step::{OneStep, TURNING_DEG_PER_FRAME, one_step, turn_about_vertical};
 pub use record::{TrainingCheck, append_checks, read_checks};
 pub use rigid::{RigidFit, RigidSplit, best_rigid_fit, rigid_split};
 pub use rows::{MeasureRow, MetricRow};
@@ -87,6 +92,9 @@ pub struct CompareOptions {
     /// Measure the GRU state's drift ([`state_drift`]; costs about one play of the motion
     /// per frame of a training window); default true.
     pub drift: bool,
+    /// Check each network frame against one simulator step from the network's own history
+    /// ([`one_step`]; costs about one simulation of the motion); default false.
+    pub one_step: bool,
 }
 
 impl Default for CompareOptions {
@@ -99,6 +107,7 @@ impl Default for CompareOptions {
             still_window_secs: 0.5,
             use_cache: true,
             drift: true,
+            one_step: false,
         }
     }
 }
@@ -159,6 +168,8 @@ pub enum ComparePhase {
     Network,
     /// Replaying the network in training windows ([`state_drift`]).
     Drift,
+    /// Stepping the simulator from the network's frames ([`one_step`]).
+    OneStep,
     /// Measuring.
     Metrics,
 }
@@ -169,8 +180,9 @@ impl ComparePhase {
         match self {
             Self::Simulating => (0.0, 0.45),
             Self::SimulatingStatic => (0.45, 0.9),
-            Self::Network => (0.9, 0.92),
-            Self::Drift => (0.92, 0.97),
+            Self::Network => (0.9, 0.91),
+            Self::Drift => (0.91, 0.94),
+            Self::OneStep => (0.94, 0.97),
             Self::Metrics => (0.97, 1.0),
         }
     }
@@ -182,6 +194,7 @@ impl ComparePhase {
             Self::SimulatingStatic => "simulating the quasi-static reference",
             Self::Network => "playing the network",
             Self::Drift => "replaying the network in training windows",
+            Self::OneStep => "stepping the simulator from the network's frames",
             Self::Metrics => "measuring",
         }
     }
@@ -423,6 +436,16 @@ fn compare_motion(
         )?),
         false => None,
     };
+    let checked = match options.one_step {
+        true => Some(one_step(
+            trained,
+            motion,
+            &network,
+            options.iterations,
+            say,
+        )?),
+        false => None,
+    };
     if !say(ComparePhase::Metrics, 0, 1) {
         return Err(PhysicsError::Cancelled {
             frames: motion.frames.len(),
@@ -449,6 +472,7 @@ fn compare_motion(
         },
     )?;
     measures.drift = drift;
+    measures.one_step = checked;
     let bodies = trained.bodies_of(motion)?;
     let model = scene.fabric.cloth_model;
     let mut network_metrics =

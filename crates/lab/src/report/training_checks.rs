@@ -250,6 +250,20 @@ fn render_verdicts(s: &mut String, checks: &[TrainingCheck]) {
                 None,
             );
         }
+        // Nor this: each frame against one simulator step from the network's own history.
+        if let Some(step) = m.one_step {
+            let turn = step
+                .turn_deg
+                .map_or_else(String::new, |t| format!(", turn with the body {t:+.2}°"));
+            row(
+                "(diagnostic) one simulator step from the network's own frames",
+                format!(
+                    "{:.1} mm (shape {:.1}, height {:+.1}{turn})",
+                    step.mean_mm, step.shape_mm, step.height_mm
+                ),
+                None,
+            );
+        }
         row(
             "no dead network, no NaN",
             format!(
@@ -356,6 +370,29 @@ mod tests {
             "{s}"
         );
         assert!(!s.contains("GRU state drift"), "not measured, not shown");
+    }
+
+    #[test]
+    fn the_one_step_check_is_shown_as_a_diagnostic() {
+        let render = |c: &[TrainingCheck]| {
+            let mut s = String::new();
+            render_training_checks(&mut s, c);
+            s
+        };
+        let mut c = check(1.0, 0.17, 0.27);
+        assert!(!render(&[c.clone()]).contains("one simulator step"));
+        c.motion.measures.one_step = Some(neural_cloth_train::compare::OneStep {
+            frames: 179,
+            mean_mm: 7.8,
+            shape_mm: 7.1,
+            height_mm: 1.18,
+            turn_deg: Some(-0.459),
+        });
+        let s = render(&[c]);
+        assert!(
+            s.contains("| (diagnostic) one simulator step from the network's own frames | 7.8 mm (shape 7.1, height +1.2, turn with the body -0.46°) | — |"),
+            "{s}"
+        );
     }
 
     #[test]

@@ -244,6 +244,30 @@ impl Stepper {
         to_vec3(&self.x_t1)
     }
 
+    /// Sets the two previous frames the next step starts from (`x_t2` before `x_t1`), as if
+    /// the stepper had produced them: a step taken from any trajectory's own history (the
+    /// network's, in `compare`'s one-step check). Refused unless both have a finite position
+    /// per vertex.
+    pub fn set_history(&mut self, x_t2: &[Vec3], x_t1: &[Vec3]) -> Result<(), PhysicsError> {
+        let v = self.terms.rest().vertex_count();
+        if x_t2.len() != v || x_t1.len() != v {
+            return Err(PhysicsError::ShapeMismatch {
+                what: "history frames".into(),
+                expected: format!("{v} vertices"),
+                found: format!("{}, {}", x_t2.len(), x_t1.len()),
+            });
+        }
+        if [x_t2, x_t1]
+            .iter()
+            .any(|f| f.iter().any(|p| !p.iter().all(|c| c.is_finite())))
+        {
+            return Err(PhysicsError::NonFinite("history frames".into()));
+        }
+        self.x_t2 = flatten(x_t2);
+        self.x_t1 = flatten(x_t1);
+        Ok(())
+    }
+
     /// The terms the stepper evaluates.
     pub fn terms(&self) -> &PhysicsTerms {
         &self.terms

@@ -257,3 +257,67 @@ fn friction_turns_a_draped_sheet_with_its_spinning_body() {
         "frictionless, the sheet turned {without} rad against {with} with friction"
     );
 }
+
+#[test]
+fn a_step_from_a_set_history_is_the_step_the_stepper_took() {
+    use neural_cloth_physics::shapes::sheet;
+    use neural_cloth_physics::simulator::{StepInput, Stepper};
+
+    use super::common::{all_effects, rest_of};
+
+    let mesh = sheet(
+        6,
+        6,
+        Vec3::new(-0.2, 1.0, 0.2),
+        Vec3::x() * 0.4,
+        -Vec3::z() * 0.4,
+    );
+    let fabric = FabricParams::default();
+    let effects = neural_cloth_physics::Effects {
+        collision: false,
+        pinning: false,
+        friction: false,
+        ..all_effects()
+    };
+    let options = SimOptions {
+        iterations_per_step: 20,
+        ..SimOptions::default()
+    };
+    let new_stepper = || {
+        Stepper::new(
+            rest_of(&mesh, &[], &[], &fabric),
+            &fabric,
+            &effects,
+            &mesh.positions,
+            1.0 / 30.0,
+            &options,
+            &Device::flex(),
+        )
+        .unwrap()
+    };
+    let mut falling = new_stepper();
+    let input = StepInput::default();
+    let frames: Vec<Vec<Vec3>> = (0..4).map(|_| falling.step(&input).unwrap().0).collect();
+    let mut fresh = new_stepper();
+    fresh.set_history(&frames[1], &frames[2]).unwrap();
+    let (x, _) = fresh.step(&input).unwrap();
+    let far = x
+        .iter()
+        .zip(&frames[3])
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0f32, f32::max);
+    assert!(far < 1e-6, "{far} m from the step taken in sequence");
+    // Falling, the history matters: from rest at the same place the step falls less far.
+    fresh.set_history(&frames[2], &frames[2]).unwrap();
+    let (from_rest, _) = fresh.step(&input).unwrap();
+    assert!(
+        from_rest[0].y > x[0].y + 1e-4,
+        "{} against {}",
+        from_rest[0].y,
+        x[0].y
+    );
+    assert!(fresh.set_history(&frames[1][1..], &frames[2]).is_err());
+    let mut broken = frames[2].clone();
+    broken[3].x = f32::NAN;
+    assert!(fresh.set_history(&frames[1], &broken).is_err());
+}

@@ -287,6 +287,10 @@ pub struct MotionMeasures {
     /// branch).
     #[serde(default)]
     pub drift: Option<super::StateDrift>,
+    /// The network's frames against one simulator step from their own history
+    /// ([`super::one_step`]; `None` unless asked for, and in older checks).
+    #[serde(default)]
+    pub one_step: Option<super::OneStep>,
 }
 
 /// Measures `seq` on `poses` (one frame each) with the still flags `still`.
@@ -365,6 +369,7 @@ pub fn measure_motion(
             seq.simulator_static,
         )?,
         drift: None,
+        one_step: None,
     })
 }
 

@@ -48,8 +48,8 @@ fn row(label: &'static str, values: [Option<f64>; 3], decimals: usize) -> Measur
 
 impl MotionMeasures {
     /// The geometric rows: distances, swings, the rigid split (all frames only: a frame's
-    /// best rigid motion is fitted per frame), the GRU state's drift (all frames only) and the
-    /// hem radii (still and moving only).
+    /// best rigid motion is fitted per frame), the GRU state's drift and the one-step check
+    /// (all frames only) and the hem radii (still and moving only).
     pub fn rows(&self) -> Vec<MeasureRow> {
         let mut rows = vec![
             row(
@@ -95,6 +95,30 @@ impl MotionMeasures {
                 ("state drift height, mm", drift.height_mm),
             ] {
                 rows.push(row(label, [Some(value), None, None], 1));
+            }
+        }
+        if let Some(step) = &self.one_step {
+            rows.push(row(
+                "one-step distance, mm",
+                [Some(step.mean_mm), None, None],
+                1,
+            ));
+            rows.push(row(
+                "one-step shape, mm",
+                [Some(step.shape_mm), None, None],
+                1,
+            ));
+            rows.push(row(
+                "one-step height, mm",
+                [Some(step.height_mm), None, None],
+                1,
+            ));
+            if let Some(turn) = step.turn_deg {
+                rows.push(row(
+                    "one-step turn with body, deg",
+                    [Some(turn), None, None],
+                    2,
+                ));
             }
         }
         if let Some(hem) = &self.hem {
@@ -183,6 +207,7 @@ mod tests {
             hem: None,
             rigid: None,
             drift: None,
+            one_step: None,
         };
         let rows = m.rows();
         assert_eq!(
@@ -207,5 +232,31 @@ mod tests {
         assert_eq!(rows.len(), 7, "the drift adds three rows");
         assert_eq!(rows[4].label, "state drift, mm");
         assert_eq!(rows[6].cells(), ["7.2", "—", "—"]);
+        let stepped = MotionMeasures {
+            one_step: Some(super::super::OneStep {
+                frames: 8,
+                mean_mm: 7.8,
+                shape_mm: 7.1,
+                height_mm: 1.2,
+                turn_deg: Some(-0.46),
+            }),
+            ..m
+        };
+        let rows = stepped.rows();
+        assert_eq!(rows.len(), 8, "the one-step check adds four rows");
+        assert_eq!(rows[4].label, "one-step distance, mm");
+        assert_eq!(rows[7].cells(), ["-0.46", "—", "—"]);
+        let still_body = MotionMeasures {
+            one_step: stepped.one_step.map(|s| super::super::OneStep {
+                turn_deg: None,
+                ..s
+            }),
+            ..m
+        };
+        assert_eq!(
+            still_body.rows().len(),
+            7,
+            "no turn row when the body does not turn"
+        );
     }
 }
