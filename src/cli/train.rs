@@ -75,7 +75,9 @@ pub struct TrainArgs {
     /// Windows per batch.
     #[arg(long)]
     pub batch: Option<usize>,
-    /// Temporal window in seconds.
+    /// Temporal window in seconds, 0.05..=4 (default 1; the paper's 0.5 loses the skirt's
+    /// lag behind a spin and lets the GRU's state drift on long runs: docs/TRAINING.md
+    /// round 12).
     #[arg(long)]
     pub window: Option<f32>,
     /// Seconds of motion before each window over which the GRU runs without gradient to set
@@ -110,10 +112,9 @@ pub struct TrainArgs {
     /// Gain of the basis initialisation (default 1 = glorot-normal).
     #[arg(long)]
     pub basis_init_gain: Option<f64>,
-    /// Hidden widths of the static encoder, comma-separated (default the paper's
-    /// `64,128,256`; `512,512,512` with `--precondition-moving-only` brings the skirt's spin
-    /// a third closer to the simulator, but drifts on a 30-minute t-shirt run:
-    /// docs/TRAINING.md round 10).
+    /// Hidden widths of the static encoder, comma-separated (default `512,512,512`; the
+    /// paper's `64,128,256` leaves the skirt's spin about 50 mm further from the simulator:
+    /// docs/TRAINING.md rounds 10 and 12).
     #[arg(long, value_delimiter = ',')]
     pub static_hidden: Option<Vec<usize>>,
     /// Seconds the simulator drapes the garment on the rest pose before training (warm
@@ -143,7 +144,8 @@ pub struct TrainArgs {
     #[arg(long)]
     pub precondition: Option<f64>,
     /// Filter the moving windows' gradient only, still windows keeping the plain gradient
-    /// (default false: every window is filtered; see docs/TRAINING.md round 8)
+    /// (default true; false filters every window, round 8's default: docs/TRAINING.md
+    /// rounds 8 and 12)
     #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
     pub precondition_moving_only: Option<bool>,
     /// Filter the dynamic terms' gradient only, the static terms keeping the plain gradient

@@ -1,6 +1,7 @@
 //! The recurrent encoder-decoder of paper §3.3 as a burn module.
 //!
-//! * Static encoder: flatten `[J, 9]` -> FC 64, 128, 256, latent (ReLU, bias).
+//! * Static encoder: flatten `[J, 9]` -> FC 512, 512, 512 by default (the paper: 64, 128,
+//!   256), latent (ReLU, bias).
 //! * Dynamic encoder, no bias anywhere: per-joint FC 12 -> 32 -> 32 (weights shared by all
 //!   joints: a `Linear` on `[B, T, J, 12]` acts per joint), flatten `[J, 32]` -> FC 512 ->
 //!   FC 512 -> GRU(latent). ReLU follows every FC layer, as in the authors' official code

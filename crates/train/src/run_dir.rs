@@ -20,11 +20,12 @@ use serde::{Deserialize, Serialize};
 use neural_cloth_core::io::export::atomic::write_atomic;
 use neural_cloth_core::scene::config::DEFAULT_TRAINING_FPS;
 use neural_cloth_core::scene::{Avatar, Garment};
+use neural_cloth_model::network_config::PAPER_STATIC_HIDDEN;
 use neural_cloth_model::{ClothNetConfig, DescriptorConfig};
 use neural_cloth_physics::{Effects, FabricParams};
 
 use super::TrainError;
-use super::config::TrainConfig;
+use super::config::{PRE_ROUND_12_WINDOW_SECS, TrainConfig};
 use super::metrics::MetricHistory;
 
 /// How many checkpoints to keep (older ones are deleted).
@@ -219,6 +220,39 @@ fn upgrade_v1(mut meta: serde_json::Value) -> serde_json::Value {
     meta
 }
 
+/// The settings whose defaults changed in docs/TRAINING.md round 12, with the values a run
+/// saved before then trained with: `(section, field, value)` of `run.json`.
+fn pre_round_12_defaults() -> [(&'static str, &'static str, serde_json::Value); 3] {
+    [
+        ("train", "window_secs", PRE_ROUND_12_WINDOW_SECS.into()),
+        ("train", "precondition_moving_only", false.into()),
+        (
+            "model",
+            "static_hidden",
+            PAPER_STATIC_HIDDEN.to_vec().into(),
+        ),
+    ]
+}
+
+/// A `run.json` that leaves out a setting whose default changed in round 12 trained with the
+/// old default (every program writes every field, so only files from before the field
+/// existed lack one): it is filled in, so that a resumed or loaded run keeps what it trained
+/// with. Other values are returned unchanged.
+fn fill_pre_round_12_defaults(mut meta: serde_json::Value) -> serde_json::Value {
+    let Some(map) = meta.as_object_mut() else {
+        return meta;
+    };
+    for (section, field, value) in pre_round_12_defaults() {
+        let entry = map
+            .entry(section)
+            .or_insert_with(|| serde_json::Value::Object(Default::default()));
+        if let Some(fields) = entry.as_object_mut() {
+            fields.entry(field).or_insert(value);
+        }
+    }
+    meta
+}
+
 impl RunDir {
     /// A run directory at `root` (created if missing).
     pub fn create(root: &Path) -> Result<Self, TrainError> {
@@ -274,10 +308,13 @@ impl RunDir {
     }
 
     /// Reads `run.json` (a version-1 file converted; the fabric and effects that versions 1
-    /// and 2 copied are left out: [`RUN_VERSION`]); a newer version is refused by its number.
+    /// and 2 copied are left out: [`RUN_VERSION`]; settings whose defaults changed that it
+    /// leaves out read as the defaults it trained with); a newer version is refused by its
+    /// number.
     pub fn meta(&self) -> Result<RunMeta, TrainError> {
         let value = self.meta_json()?;
-        serde_json::from_value(upgrade_v1(value)).map_err(|e| self.unreadable_meta(e))
+        serde_json::from_value(fill_pre_round_12_defaults(upgrade_v1(value)))
+            .map_err(|e| self.unreadable_meta(e))
     }
 
     /// The fabric and effects a `run.json` of version 1 or 2 copied beside its recorded scene
@@ -433,6 +470,38 @@ mod tests {
         new["version"] = 99.into();
         let e = run_with(dir.path(), &new).meta().unwrap_err().to_string();
         assert!(e.contains("format version 99"), "{e}");
+    }
+
+    /// Round 12 changed three defaults; a run saved before (its `run.json` without the
+    /// fields) keeps what it trained with, and one that names them keeps its own values.
+    #[test]
+    fn a_run_saved_before_round_12_keeps_its_window_encoder_and_filter() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut old = serde_json::to_value(meta(30.0)).unwrap();
+        for (section, field) in [
+            ("train", "window_secs"),
+            ("train", "precondition_moving_only"),
+            ("model", "static_hidden"),
+        ] {
+            old[section].as_object_mut().unwrap().remove(field);
+        }
+        let read = run_with(dir.path(), &old).meta().unwrap();
+        assert_eq!(read.train.window_secs, 0.5);
+        assert!(!read.train.precondition_moving_only);
+        assert_eq!(read.model.static_hidden, vec![64, 128, 256]);
+        assert_ne!(
+            (
+                TrainConfig::default().window_secs,
+                ClothNetConfig::default().static_hidden
+            ),
+            (0.5, vec![64, 128, 256]),
+            "the defaults moved"
+        );
+        // A file that names them is read as written.
+        let current = serde_json::to_value(meta(30.0)).unwrap();
+        let read = run_with(dir.path(), &current).meta().unwrap();
+        assert_eq!(read.train, TrainConfig::default());
+        assert_eq!(read.model, ClothNetConfig::default());
     }
 
     /// A `run.json` of format version 2 as that program wrote it: fabric and effects copied

@@ -17,6 +17,7 @@ fn session(random: bool, dir: &std::path::Path) -> super::NeuralSession {
         scene: build_builtin(&config).unwrap(),
         scene_config: config,
         train: TrainConfig {
+            window_secs: 0.5,
             gru_burn_in_secs: 0.5,
             gru_burn_in_random: random,
             predrape_secs: 0.0,
