@@ -1037,7 +1037,8 @@ pinning = true
                 true
             },
         )
-        .unwrap();
+        .unwrap()
+        .expect("a dynamic scene with frames to check");
         assert_eq!(sim.frames, motion.frames.len() - 2);
         assert_eq!(steps, sim.frames, "progress reaches every frame");
         assert!(sim.mean_mm < 0.01, "the simulator obeys itself: {sim:?}");
@@ -1053,7 +1054,8 @@ pinning = true
             options.iterations,
             &mut |_, _, _| true,
         )
-        .unwrap();
+        .unwrap()
+        .expect("checked");
         assert!(jerky.mean_mm > 10.0 * sim.mean_mm + 0.01, "{jerky:?}");
         assert!(jerky.shape_mm.is_finite() && jerky.height_mm.is_finite());
         // Cancelling stops it.
@@ -1069,6 +1071,12 @@ pinning = true
         assert!(step.mean_mm.is_finite() && step.mean_mm > 0.0, "{step:?}");
         let plain = compare(&trained, Some("walk"), &quick(), &mut |_| true).unwrap();
         assert!(plain.motions[0].measures.one_step.is_none());
+        // Nor at w = 0 (frames not meant to follow the physics), nor with two frames.
+        let quiet = CompareOptions { w: 0.0, ..asked };
+        let at_rest = compare(&trained, Some("walk"), &quiet, &mut |_| true).unwrap();
+        assert!(at_rest.motions[0].measures.one_step.is_none());
+        let short = one_step(&trained, &motion, &held[..2], 1, &mut |_, _, _| true).unwrap();
+        assert!(short.is_none());
     }
 
     #[test]

@@ -39,7 +39,8 @@ pub struct CompareArgs {
     pub no_drift: bool,
     /// Also step the simulator once from each pair of the network's own frames and measure
     /// how far the network's next frame is from that step (does it obey the physics frame by
-    /// frame, and which way does physics push it; costs about one simulation of the motion).
+    /// frame, and which way does physics push it; at --w 1 only, on scenes with dynamics;
+    /// costs about one simulation of the motion).
     #[arg(long)]
     pub one_step: bool,
     /// Print the report as JSON instead of a table.

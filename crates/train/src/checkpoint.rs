@@ -106,9 +106,11 @@ fn check_file(path: &Path, shown: &Path) -> Result<FileCheck, TrainError> {
         // Fill the whole buffer (short reads happen), so every piece but the last is whole words.
         let mut filled = 0;
         while filled < buffer.len() {
-            match file.read(&mut buffer[filled..]).map_err(io)? {
-                0 => break,
-                n => filled += n,
+            match file.read(&mut buffer[filled..]) {
+                Ok(0) => break,
+                Ok(n) => filled += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(io(e)),
             }
         }
         h = fold_words(h, &buffer[..filled]);

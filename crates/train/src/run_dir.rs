@@ -243,10 +243,11 @@ fn fill_pre_round_12_defaults(mut meta: serde_json::Value) -> serde_json::Value 
         return meta;
     };
     for (section, field, value) in pre_round_12_defaults() {
-        let entry = map
-            .entry(section)
-            .or_insert_with(|| serde_json::Value::Object(Default::default()));
-        if let Some(fields) = entry.as_object_mut() {
+        // A missing section stays missing (and the file is refused for it).
+        if let Some(fields) = map
+            .get_mut(section)
+            .and_then(serde_json::Value::as_object_mut)
+        {
             fields.entry(field).or_insert(value);
         }
     }
@@ -497,6 +498,10 @@ mod tests {
             (0.5, vec![64, 128, 256]),
             "the defaults moved"
         );
+        // A file without the section is refused, as before (nothing is made up for it).
+        let mut no_train = old.clone();
+        no_train.as_object_mut().unwrap().remove("train");
+        assert!(run_with(dir.path(), &no_train).meta().is_err());
         // A file that names them is read as written.
         let current = serde_json::to_value(meta(30.0)).unwrap();
         let read = run_with(dir.path(), &current).meta().unwrap();

@@ -244,10 +244,12 @@ impl Stepper {
         to_vec3(&self.x_t1)
     }
 
-    /// Sets the two previous frames the next step starts from (`x_t2` before `x_t1`), as if
-    /// the stepper had produced them: a step taken from any trajectory's own history (the
-    /// network's, in `compare`'s one-step check). Refused unless both have a finite position
-    /// per vertex.
+    /// Sets the two previous frames the next step starts from (`x_t2` before `x_t1`): a step
+    /// taken from any trajectory's own history (the network's, in `compare`'s one-step
+    /// check). Only the positions are set: the previous step's body (friction's start, see
+    /// [`StepInput::body_before`]) and skinned template (static solves) stay the stepper's
+    /// own, so give `body_before` with the next step. Refused unless both have a finite
+    /// position per vertex.
     pub fn set_history(&mut self, x_t2: &[Vec3], x_t1: &[Vec3]) -> Result<(), PhysicsError> {
         let v = self.terms.rest().vertex_count();
         if x_t2.len() != v || x_t1.len() != v {

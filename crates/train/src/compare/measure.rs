@@ -288,7 +288,8 @@ pub struct MotionMeasures {
     #[serde(default)]
     pub drift: Option<super::StateDrift>,
     /// The network's frames against one simulator step from their own history
-    /// ([`super::one_step`]; `None` unless asked for, and in older checks).
+    /// ([`super::one_step`]; `None` unless asked for, at `w` other than 1, without dynamics,
+    /// and in older checks).
     #[serde(default)]
     pub one_step: Option<super::OneStep>,
 }

@@ -57,9 +57,12 @@ fn root_yaw(skeleton: &Skeleton, pose: &Pose) -> f64 {
 }
 
 /// The rotation about +Y (radians) that best takes `from` onto `to` after centring each,
-/// the same vertices in the same order (0 for empty or degenerate frames).
+/// the same vertices in the same order (0 for empty, degenerate or unequal frames).
 pub fn turn_about_vertical(from: &[Vec3], to: &[Vec3]) -> f64 {
-    let n = from.len().min(to.len()).max(1) as f32;
+    if from.len() != to.len() || from.is_empty() {
+        return 0.0;
+    }
+    let n = from.len() as f32;
     let centre = |ps: &[Vec3]| ps.iter().fold(Vec3::zeros(), |s, p| s + p) / n;
     let (cf, ct) = (centre(from), centre(to));
     let (mut s, mut c) = (0.0f64, 0.0f64);
@@ -85,21 +88,22 @@ fn wrap(angle: f64) -> f64 {
     }
 }
 
-/// [`OneStep`] of `network` (the network's frames on `motion`, resampled to the training
-/// rate) with `iterations` L-BFGS iterations per step. `say` sees the frames done; returning
-/// false cancels.
+/// [`OneStep`] of `network` (the network's frames on `motion` at `w = 1`, resampled to the
+/// training rate) with `iterations` L-BFGS iterations per step; `None` when there is nothing
+/// to check: fewer than three frames, or a scene without dynamics (whose steps are static
+/// solves, with no history to take). `say` sees the frames done; returning false cancels.
 pub fn one_step(
     trained: &TrainedModel,
     motion: &Motion,
     network: &[Vec<Vec3>],
     iterations: usize,
     say: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
-) -> Result<OneStep, TrainError> {
+) -> Result<Option<OneStep>, TrainError> {
     let scene = &trained.scene;
     let poses = &motion.frames;
     let n = poses.len().min(network.len());
-    if n < 3 {
-        return Ok(OneStep::default());
+    if n < 3 || !scene.effects.dynamics {
+        return Ok(None);
     }
     let device = device_for(BackendKind::Cpu, false);
     let rest = Arc::new(GarmentRest::from_garment(&scene.garment, &scene.fabric)?);
@@ -152,13 +156,13 @@ pub fn one_step(
         }
     }
     let frames = n - 2;
-    Ok(OneStep {
+    Ok(Some(OneStep {
         frames,
         mean_mm: sum_mm / frames as f64,
         shape_mm: shape_mm / frames as f64,
         height_mm: height_mm / frames as f64,
         turn_deg: (turning > 0).then(|| turn_deg / turning as f64),
-    })
+    }))
 }
 
 #[cfg(test)]
@@ -187,8 +191,31 @@ mod tests {
             assert!((found - angle).abs() < 1e-5, "{found} against {angle}");
         }
         assert_eq!(turn_about_vertical(&[], &[]), 0.0);
+        assert_eq!(turn_about_vertical(&a, &a[1..]), 0.0, "unequal frames");
         let point = vec![Vec3::new(0.1, 0.2, 0.3); 4];
         assert_eq!(turn_about_vertical(&point, &point), 0.0);
+    }
+
+    #[test]
+    fn the_root_yaw_turns_with_the_root_about_the_vertical() {
+        use neural_cloth_core::geometry::Quat;
+        let avatar = neural_cloth_core::scene::procedural::mannequin().unwrap();
+        let skeleton = &avatar.skeleton;
+        let rest = skeleton.rest_pose();
+        let at_rest = root_yaw(skeleton, &rest);
+        for angle in [-1.0f32, 0.4, 2.5] {
+            let mut turned = rest.clone();
+            turned.rotations[0] = Quat::from_axis_angle(&Vec3::y_axis(), angle) * rest.rotations[0];
+            let found = wrap(root_yaw(skeleton, &turned) - at_rest);
+            assert!(
+                (found - f64::from(angle)).abs() < 1e-5,
+                "{found} against {angle}"
+            );
+            // The garment turned with the root turns the same way.
+            let ring0 = ring(0.0, Vec3::zeros());
+            let ring1 = ring(f64::from(angle), Vec3::zeros());
+            assert!((turn_about_vertical(&ring0, &ring1) - found).abs() < 1e-5);
+        }
     }
 
     #[test]
