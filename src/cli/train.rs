@@ -75,9 +75,9 @@ pub struct TrainArgs {
     /// Windows per batch.
     #[arg(long)]
     pub batch: Option<usize>,
-    /// Temporal window in seconds, 0.05..=4 (default 1; the paper's 0.5 loses the skirt's
-    /// lag behind a spin and lets the GRU's state drift on long runs: docs/TRAINING.md
-    /// round 12).
+    /// Temporal window in seconds, 0.05..=4 (default 1, or the run's own with --resume; the
+    /// paper's 0.5 loses the skirt's lag behind a spin and lets the GRU's state drift on long
+    /// runs: docs/TRAINING.md round 12).
     #[arg(long)]
     pub window: Option<f32>,
     /// Seconds of motion before each window over which the GRU runs without gradient to set
