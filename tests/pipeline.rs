@@ -1024,11 +1024,14 @@ pinning = true
         let motion = trained.scene.motions[0].0.resample(30.0).unwrap();
         let options = quick();
         let reference = reference_for(&trained, &motion, &options, &mut |_, _, _| true).unwrap();
+        let bodies = trained.bodies_of(&motion).unwrap();
+        let bodies = bodies.as_deref();
         let mut steps = 0;
         let sim = one_step(
             &trained,
             &motion,
             &reference.dynamic,
+            bodies,
             options.iterations,
             &mut |phase, done, total| {
                 assert_eq!(phase, ComparePhase::OneStep);
@@ -1051,6 +1054,7 @@ pinning = true
             &trained,
             &motion,
             &held,
+            bodies,
             options.iterations,
             &mut |_, _, _| true,
         )
@@ -1059,7 +1063,7 @@ pinning = true
         assert!(jerky.mean_mm > 10.0 * sim.mean_mm + 0.01, "{jerky:?}");
         assert!(jerky.shape_mm.is_finite() && jerky.height_mm.is_finite());
         // Cancelling stops it.
-        let cancelled = one_step(&trained, &motion, &held, 1, &mut |_, _, _| false);
+        let cancelled = one_step(&trained, &motion, &held, bodies, 1, &mut |_, _, _| false);
         assert!(cancelled.is_err());
         // compare measures it when asked.
         let asked = CompareOptions {
@@ -1075,7 +1079,10 @@ pinning = true
         let quiet = CompareOptions { w: 0.0, ..asked };
         let at_rest = compare(&trained, Some("walk"), &quiet, &mut |_| true).unwrap();
         assert!(at_rest.motions[0].measures.one_step.is_none());
-        let short = one_step(&trained, &motion, &held[..2], 1, &mut |_, _, _| true).unwrap();
+        let short = one_step(&trained, &motion, &held[..2], bodies, 1, &mut |_, _, _| {
+            true
+        })
+        .unwrap();
         assert!(short.is_none());
     }
 

@@ -536,15 +536,8 @@ impl TrainOptimiser {
     /// ([`FusedAdam::write_file`]).
     pub fn write_file(&self, path: &Path) -> Result<(), AdamError> {
         match self {
-            Self::Burn(_) => {
-                let bytes = self.to_bytes()?;
-                let write = || -> std::io::Result<()> {
-                    let mut file = std::fs::File::create(path)?;
-                    std::io::Write::write_all(&mut file, &bytes)?;
-                    file.sync_all()
-                };
-                write().map_err(|e| AdamError::Record(format!("{e}: {}", path.display())))
-            }
+            Self::Burn(_) => super::checkpoint::write_synced(path, &self.to_bytes()?, path)
+                .map_err(|e| AdamError::Record(e.to_string())),
             Self::Fused(adam) => adam.write_file(path),
         }
     }

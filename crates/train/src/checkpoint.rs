@@ -158,7 +158,7 @@ fn corrupt(reason: impl Into<String>, path: &Path) -> TrainError {
 }
 
 /// Writes `bytes` to `path` and syncs it; errors name `shown` (the file's final path).
-fn write_synced(path: &Path, bytes: &[u8], shown: &Path) -> Result<(), TrainError> {
+pub(crate) fn write_synced(path: &Path, bytes: &[u8], shown: &Path) -> Result<(), TrainError> {
     let mut file = std::fs::File::create(path).map_err(|e| TrainError::io(e, shown))?;
     file.write_all(bytes)
         .and_then(|()| file.sync_all())

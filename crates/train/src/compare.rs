@@ -438,8 +438,16 @@ fn compare_motion(
         false => None,
     };
     // Only the frames as trained are meant to follow the physics (w = 0 and w = 2 are not).
+    let bodies = trained.bodies_of(motion)?;
     let checked = match options.one_step && options.w == 1.0 {
-        true => one_step(trained, motion, &network, options.iterations, say)?,
+        true => one_step(
+            trained,
+            motion,
+            &network,
+            bodies.as_deref(),
+            options.iterations,
+            say,
+        )?,
         false => None,
     };
     if !say(ComparePhase::Metrics, 0, 1) {
@@ -469,7 +477,6 @@ fn compare_motion(
     )?;
     measures.drift = drift;
     measures.one_step = checked;
-    let bodies = trained.bodies_of(motion)?;
     let model = scene.fabric.cloth_model;
     let mut network_metrics =
         sequence_mean_metrics(terms, &network, bodies.as_deref(), fps, model)?;

@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 use neural_cloth_core::geometry::Vec3;
 use neural_cloth_core::scene::{Motion, Pose, Skeleton};
 use neural_cloth_physics::simulator::{SimOptions, StepInput, Stepper};
-use neural_cloth_physics::{GarmentRest, PhysicsError};
+use neural_cloth_physics::{GarmentRest, PhysicsError, PosedBody};
 
 use super::super::trained::TrainedModel;
 use super::super::{BackendKind, TrainError, device_for};
@@ -89,13 +89,15 @@ fn wrap(angle: f64) -> f64 {
 }
 
 /// [`OneStep`] of `network` (the network's frames on `motion` at `w = 1`, resampled to the
-/// training rate) with `iterations` L-BFGS iterations per step; `None` when there is nothing
+/// training rate) on `bodies` (the motion's posed bodies, [`TrainedModel::bodies_of`]) with
+/// `iterations` L-BFGS iterations per step; `None` when there is nothing
 /// to check: fewer than three frames, or a scene without dynamics (whose steps are static
 /// solves, with no history to take). `say` sees the frames done; returning false cancels.
 pub fn one_step(
     trained: &TrainedModel,
     motion: &Motion,
     network: &[Vec<Vec3>],
+    bodies: Option<&[Arc<PosedBody>]>,
     iterations: usize,
     say: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
 ) -> Result<Option<OneStep>, TrainError> {
@@ -121,14 +123,13 @@ pub fn one_step(
         &options,
         &device,
     )?;
-    let bodies = trained.bodies_of(motion)?;
     let pinned = scene.effects.pinning && !scene.garment.pinned.is_empty();
     let skeleton = &scene.avatar.skeleton;
     let (mut sum_mm, mut shape_mm, mut height_mm) = (0.0f64, 0.0f64, 0.0f64);
     let (mut turn_deg, mut turning) = (0.0f64, 0usize);
     for t in 2..n {
         stepper.set_history(&network[t - 2], &network[t - 1])?;
-        let body = |k: usize| bodies.as_ref().and_then(|b| b.get(k).cloned());
+        let body = |k: usize| bodies.and_then(|b| b.get(k).cloned());
         let input = StepInput {
             body: body(t),
             body_before: body(t - 1),
