@@ -200,12 +200,14 @@ impl SceneConfig {
     pub fn default_scene() -> Self {
         let motions = MotionKind::ALL
             .into_iter()
+            .filter(|kind| *kind != MotionKind::Rom)
             .map(|kind| MotionSource::Builtin {
                 builtin: kind,
                 duration_secs: match kind {
                     MotionKind::Turn => 6.4,
                     MotionKind::Jump => 5.4,
                     MotionKind::Twirl => 7.6,
+                    MotionKind::Rom => 13.8,
                     _ => 6.0,
                 },
                 speed: 1.0,

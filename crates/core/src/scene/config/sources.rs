@@ -104,7 +104,7 @@ pub enum GarmentSource {
 #[serde(try_from = "RawSource", into = "RawSource")]
 pub enum MotionSource {
     /// A procedural motion: `builtin = "idle" | "walk" | "run" | "jump" | "turn" | "spin" |
-    /// "twirl"`,
+    /// "twirl" | "rom"`,
     /// optional `duration_secs`, `speed`, `fps`, `split`, `name` (needs the mannequin).
     Builtin {
         /// Which one.

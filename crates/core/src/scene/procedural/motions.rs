@@ -39,16 +39,23 @@ pub enum MotionKind {
     /// per second), the arms rising and falling: rotations of every speed the spin has, in
     /// a different clip, so that a network trained on it meets fast turns before the spin.
     Twirl,
+    /// A range-of-motion clip, as rigging and cloth departments use to test a character: the
+    /// arms out, up, forward and one at a time, the elbows bent, the spine bent, leaned and
+    /// twisted, each knee raised, one slow move after another (13.8 s cycle, starting and
+    /// ending at rest), so that a network trained on it has seen the poses other clips
+    /// hold only while moving fast (the spin's arms out).
+    Rom,
 }
 
 impl MotionKind {
     /// All kinds.
-    pub const ALL: [MotionKind; 7] = [
+    pub const ALL: [MotionKind; 8] = [
         MotionKind::Idle,
         MotionKind::Walk,
         MotionKind::Run,
         MotionKind::Jump,
         MotionKind::Twirl,
+        MotionKind::Rom,
         MotionKind::Turn,
         MotionKind::Spin,
     ];
@@ -63,6 +70,7 @@ impl MotionKind {
             MotionKind::Turn => "turn",
             MotionKind::Spin => "spin",
             MotionKind::Twirl => "twirl",
+            MotionKind::Rom => "rom",
         }
     }
 
@@ -78,7 +86,8 @@ impl MotionKind {
             | MotionKind::Walk
             | MotionKind::Run
             | MotionKind::Jump
-            | MotionKind::Twirl => Split::Train,
+            | MotionKind::Twirl
+            | MotionKind::Rom => Split::Train,
             MotionKind::Turn => Split::Validation,
             MotionKind::Spin => Split::Test,
         }
@@ -442,6 +451,89 @@ fn twirl(t: f32) -> Pose {
     b.finish()
 }
 
+/// Range-of-motion keys: time (s), then the channels [`RomChannel`] names, in radians. Each
+/// move takes 0.8-1 s and eases in and out (cubic, zero slope at every key); a repeated value
+/// is a hold.
+const ROM_KEYS: [(f32, [f32; 9]); 19] = {
+    const A: f32 = ARM_DROP_RAD;
+    [
+        (0.0, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        (1.0, [A, A, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        (1.3, [A, A, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        (2.3, [A + 0.6, A + 0.6, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        (2.6, [A + 0.6, A + 0.6, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        (3.6, [0.0, 0.0, 1.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        (3.9, [0.0, 0.0, 1.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        (4.9, [0.5 * A, 0.5 * A, 0.0, 1.6, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        (5.2, [0.5 * A, 0.5 * A, 0.0, 1.6, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        (6.2, [A + 0.4, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        (7.2, [0.0, A + 0.4, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        (8.2, [0.0, 0.0, 0.0, 0.0, 0.45, 0.0, 0.0, 0.0, 0.0]),
+        (9.0, [0.0, 0.0, 0.0, 0.0, 0.0, 0.3, 0.0, 0.0, 0.0]),
+        (9.8, [0.0, 0.0, 0.0, 0.0, 0.0, -0.3, 0.0, 0.0, 0.0]),
+        (10.6, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.6, 0.0, 0.0]),
+        (11.4, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -0.6, 0.0, 0.0]),
+        (12.2, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]),
+        (13.0, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]),
+        (13.8, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+    ]
+};
+
+/// The channels of [`ROM_KEYS`], in order.
+#[derive(Clone, Copy)]
+enum RomChannel {
+    /// Left upper arm raised sideways from the A-pose (rad; [`ARM_DROP_RAD`] is horizontal).
+    RaiseLeft,
+    /// Right upper arm raised sideways.
+    RaiseRight,
+    /// Both upper arms swung forward.
+    Forward,
+    /// Both elbows bent.
+    Elbow,
+    /// Spine bent forward (over two joints).
+    Bend,
+    /// Spine leaned sideways.
+    Lean,
+    /// Spine twisted about the vertical.
+    Twist,
+    /// Left knee raised (1 = hip flexed 0.9 rad, knee 1.4 rad).
+    KneeLeft,
+    /// Right knee raised.
+    KneeRight,
+}
+
+fn range_of_motion(t: f32) -> Pose {
+    // Longer takes repeat the cycle, which starts and ends at rest.
+    let t = t.rem_euclid(ROM_KEYS[ROM_KEYS.len() - 1].0);
+    let channel = |c: RomChannel| hermite(&ROM_KEYS.map(|(time, v)| (time, v[c as usize], 0.0)), t);
+    let arm = |raise: f32| rx(-channel(RomChannel::Forward)) * rz(raise);
+    let elbow = rx(-channel(RomChannel::Elbow));
+    let knee = |k: f32| [rx(-0.9 * k), rx(1.4 * k), rx(-0.5 * k)];
+    let (bend, lean, twist) = (
+        channel(RomChannel::Bend),
+        channel(RomChannel::Lean),
+        channel(RomChannel::Twist),
+    );
+    let mut b = PoseBuilder::new();
+    b.pair(
+        LEFT_ARM,
+        arm(channel(RomChannel::RaiseLeft)),
+        arm(channel(RomChannel::RaiseRight)),
+    );
+    b.pair(LEFT_FORE_ARM, elbow, elbow);
+    let spine = rx(0.5 * bend) * rz(0.5 * lean) * ry(0.5 * twist);
+    b.rotations[SPINE] = spine;
+    b.rotations[SPINE1] = spine;
+    let (l, r) = (
+        knee(channel(RomChannel::KneeLeft)),
+        knee(channel(RomChannel::KneeRight)),
+    );
+    for (k, joint) in [LEFT_UP_LEG, LEFT_LEG, LEFT_FOOT].into_iter().enumerate() {
+        b.pair(joint, l[k], r[k]);
+    }
+    b.finish()
+}
+
 /// The pose of motion `kind` at `t_secs` into a take lasting `duration_secs`.
 pub fn pose_at(kind: MotionKind, t_secs: f32, duration_secs: f32) -> Pose {
     let t = if t_secs.is_finite() {
@@ -457,6 +549,7 @@ pub fn pose_at(kind: MotionKind, t_secs: f32, duration_secs: f32) -> Pose {
         MotionKind::Turn => turn(t),
         MotionKind::Spin => spin(t, duration_secs),
         MotionKind::Twirl => twirl(t),
+        MotionKind::Rom => range_of_motion(t),
     }
 }
 
@@ -550,5 +643,43 @@ mod tests {
         }
         assert!(MotionKind::from_name("walk") == Some(MotionKind::Walk));
         assert!(leg_bend(0.0) < 1e-3 && leg_bend(0.16) > 0.5);
+    }
+
+    #[test]
+    fn rom_reaches_its_poses_slowly_and_repeats() {
+        let cycle = ROM_KEYS[ROM_KEYS.len() - 1].0;
+        let angle =
+            |t: f32, joint: usize| pose_at(MotionKind::Rom, t, cycle).rotations[joint].angle();
+        // Both arms above the horizontal at 2.3 s, one at a time at 6.2 s and 7.2 s.
+        assert!((angle(2.3, LEFT_ARM) - (ARM_DROP_RAD + 0.6)).abs() < 1e-4);
+        assert!((angle(2.3, RIGHT_ARM) - (ARM_DROP_RAD + 0.6)).abs() < 1e-4);
+        assert!(angle(6.2, LEFT_ARM) > ARM_DROP_RAD && angle(6.2, RIGHT_ARM) < 1e-4);
+        assert!(angle(7.2, RIGHT_ARM) > ARM_DROP_RAD && angle(7.2, LEFT_ARM) < 1e-4);
+        // The elbows, the spine and each knee move in their turn.
+        assert!((angle(4.9, LEFT_FORE_ARM) - 1.6).abs() < 1e-4);
+        assert!(angle(8.2, SPINE) > 0.2 && angle(10.6, SPINE1) > 0.25);
+        assert!(angle(12.2, LEFT_LEG) > 1.3 && angle(12.2, RIGHT_LEG) < 1e-4);
+        assert!(angle(13.0, RIGHT_LEG) > 1.3 && angle(13.0, LEFT_LEG) < 1e-4);
+        // Slow: no joint turns faster than 3 rad/s; the cycle closes at rest and repeats.
+        let fps = 120.0;
+        for k in 0..(2.0 * cycle * fps) as usize {
+            let (a, b) = (k as f32 / fps, (k + 1) as f32 / fps);
+            let (pa, pb) = (
+                pose_at(MotionKind::Rom, a, 30.0),
+                pose_at(MotionKind::Rom, b, 30.0),
+            );
+            for (qa, qb) in pa.rotations.iter().zip(&pb.rotations) {
+                assert!(qa.angle_to(qb) * fps < 3.0, "at {a} s");
+            }
+        }
+        for t in [0.0, 1.7, 5.0, 12.9] {
+            let (p, q) = (
+                pose_at(MotionKind::Rom, t, 30.0),
+                pose_at(MotionKind::Rom, t + cycle, 30.0),
+            );
+            for (a, b) in p.rotations.iter().zip(&q.rotations) {
+                assert!(a.angle_to(b) < 1e-4, "at {t} s");
+            }
+        }
     }
 }
