@@ -486,6 +486,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
                 bar.finish_and_clear();
                 let summary = result.map_err(|e| anyhow::anyhow!(e.to_string()))?;
                 println!("{}", serde_json::to_string_pretty(&summary)?);
+                if let Some(warning) = summary.health_warning() {
+                    eprintln!("warning: {warning}");
+                }
                 break;
             }
         }

@@ -390,6 +390,9 @@ impl TrainingControl {
                 "⚠ training stalled at step {step}: {reason}; {remedy}"
             )),
             TrainEvent::Finished(result) => {
+                if let Some(warning) = result.as_ref().ok().and_then(|s| s.health_warning()) {
+                    self.note(format!("⚠ {warning}"));
+                }
                 let result = result.map(|s| {
                     format!(
                         "{} steps in {:.1} s, run {}",

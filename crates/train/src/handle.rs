@@ -142,6 +142,16 @@ pub struct RunSummary {
     pub last_validation: Option<MetricRecord>,
     /// How many times a divergence was rolled back.
     pub rollbacks: u32,
+    /// Metrics of the last validation (or, without one, training) pass beyond the health
+    /// limits ([`super::health`]): empty for a garment that looks healthy.
+    pub health: Vec<super::health::Unhealthy>,
+}
+
+impl RunSummary {
+    /// One line saying what looks broken about the trained garment, or `None`.
+    pub fn health_warning(&self) -> Option<String> {
+        super::health::verdict_line(&self.health)
+    }
 }
 
 /// The work the loop drives; implemented by the real trainer and by test doubles.
@@ -597,13 +607,20 @@ fn run_loop<S: Session>(
             source: Box::new(e),
         })?;
     emit.send(TrainEvent::Checkpoint { step, path });
+    let last_validation = history.validation.last().copied();
+    let last_train = history.train.last().copied();
+    let health = last_validation
+        .or(last_train)
+        .map(|m| super::health::assess(&m, &super::health::HealthLimits::default()))
+        .unwrap_or_default();
     Ok(RunSummary {
         run_dir: config.run_dir,
         steps: step,
         wall_secs: trained_secs,
-        last_train: history.train.last().copied(),
-        last_validation: history.validation.last().copied(),
+        last_train,
+        last_validation,
         rollbacks,
+        health,
     })
 }
 

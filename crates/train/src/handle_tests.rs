@@ -4,10 +4,13 @@ use std::sync::{Arc, Mutex};
 
 use super::*;
 
-/// Records the schedule factor of every step; everything else is inert.
+/// Records the schedule factor of every step; validates to `validation`; its checkpoints
+/// succeed when `checkpoints` is set (writing nothing); everything else is inert.
 struct Recording {
     factors: Arc<Mutex<Vec<f64>>>,
     factor: f64,
+    validation: MetricRecord,
+    checkpoints: bool,
 }
 
 impl Session for Recording {
@@ -21,10 +24,7 @@ impl Session for Recording {
         })
     }
     fn validate(&mut self) -> Result<MetricRecord, TrainError> {
-        Ok(MetricRecord {
-            loss: 1.0,
-            ..Default::default()
-        })
+        Ok(self.validation)
     }
     fn weights_finite(&self) -> bool {
         true
@@ -33,7 +33,11 @@ impl Session for Recording {
         Err(TrainError::Data("no weights".into()))
     }
     fn checkpoint(&mut self, _: u64, _: &MetricHistory) -> Result<PathBuf, TrainError> {
-        Err(TrainError::NoCheckpointYet)
+        if self.checkpoints {
+            Ok(PathBuf::from("unused/checkpoint"))
+        } else {
+            Err(TrainError::NoCheckpointYet)
+        }
     }
     fn restore_last_checkpoint(&mut self) -> Result<u64, TrainError> {
         Err(TrainError::NoCheckpointYet)
@@ -53,13 +57,20 @@ impl Session for Recording {
     }
 }
 
-fn factors_of(max_steps: Option<u64>, lr_decay: (f64, f64), warmup_steps: u64) -> Vec<f64> {
-    let factors = Arc::new(Mutex::new(Vec::new()));
-    let session = Recording {
+fn recording(factors: &Arc<Mutex<Vec<f64>>>) -> Recording {
+    Recording {
         factors: factors.clone(),
         factor: 1.0,
-    };
-    let config = LoopConfig {
+        validation: MetricRecord {
+            loss: 1.0,
+            ..Default::default()
+        },
+        checkpoints: false,
+    }
+}
+
+fn loop_config(max_steps: Option<u64>, lr_decay: (f64, f64), warmup_steps: u64) -> LoopConfig {
+    LoopConfig {
         run_dir: PathBuf::from("unused"),
         start_step: 0,
         history: MetricHistory::default(),
@@ -73,8 +84,13 @@ fn factors_of(max_steps: Option<u64>, lr_decay: (f64, f64), warmup_steps: u64) -
         dead_limit_pct: 100.0,
         lr_decay,
         warmup_steps,
-    };
-    let handle = TrainerHandle::spawn_session(session, config, None).unwrap();
+    }
+}
+
+fn factors_of(max_steps: Option<u64>, lr_decay: (f64, f64), warmup_steps: u64) -> Vec<f64> {
+    let factors = Arc::new(Mutex::new(Vec::new()));
+    let config = loop_config(max_steps, lr_decay, warmup_steps);
+    let handle = TrainerHandle::spawn_session(recording(&factors), config, None).unwrap();
     // Drain the events until the thread ends, so it never blocks on a full channel; an
     // open-ended run is stopped after 20 steps.
     while !handle.is_finished() {
@@ -135,4 +151,44 @@ fn a_live_setting_is_applied_or_rejected_with_its_error() {
         other => panic!("{other:?}"),
     }
     assert_eq!(window.to_string(), "window 0.8 s");
+}
+
+/// The summary of a run names the metrics beyond the health limits (the skirt of the issue-13
+/// audit fell off the body, strain 9.85, and the summary said nothing).
+#[test]
+fn a_broken_garment_is_named_in_the_summary_issue_13() {
+    let summary_of = |validation: MetricRecord| {
+        let factors = Arc::new(Mutex::new(Vec::new()));
+        let session = Recording {
+            validation,
+            checkpoints: true,
+            ..recording(&factors)
+        };
+        let handle =
+            TrainerHandle::spawn_session(session, loop_config(Some(3), (0.0, 1.0), 0), None)
+                .unwrap();
+        let summary = loop {
+            match handle.recv_timeout(Duration::from_secs(10)) {
+                Some(TrainEvent::Finished(result)) => break result.unwrap(),
+                Some(_) => {}
+                None => panic!("no summary"),
+            }
+        };
+        handle.join();
+        summary
+    };
+    let healthy = MetricRecord {
+        strain: 0.02,
+        bending: 0.1,
+        ..Default::default()
+    };
+    let summary = summary_of(healthy);
+    assert!(summary.health.is_empty() && summary.health_warning().is_none());
+    let summary = summary_of(MetricRecord {
+        strain: 9.8481,
+        ..healthy
+    });
+    assert_eq!(summary.health.len(), 1);
+    let warning = summary.health_warning().unwrap();
+    assert!(warning.contains("mean strain 9.848"), "{warning}");
 }

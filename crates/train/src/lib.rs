@@ -20,6 +20,7 @@ pub mod data;
 pub mod eval;
 pub mod filter;
 pub mod handle;
+pub mod health;
 pub mod losses;
 pub mod metrics;
 pub mod preflight;
