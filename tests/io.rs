@@ -9,7 +9,8 @@
 //! turned Y up (`io/up_axis.rs`), and a scene of them loading as its Y-up twin (`io/scene_up.rs`). Garment
 //! fitting on built-in and MakeHuman garments, and the `fit` command (`io/fit.rs`); garments
 //! made for another arm pose re-posed (`io/sleeves.rs`). Characters
-//! built partly of rigid meshes parented to bones (`io/rigid_parts.rs`).
+//! built partly of rigid meshes parented to bones (`io/rigid_parts.rs`), and only of them
+//! (`io/rigid_only.rs`).
 //!
 //! Layout: this file holds the shared helpers; the tests live in `io/*.rs` (one test binary).
 
@@ -27,6 +28,8 @@ mod motions;
 mod mutation;
 #[path = "io/raw_gltf.rs"]
 mod raw_gltf;
+#[path = "io/rigid_only.rs"]
+mod rigid_only;
 #[path = "io/rigid_parts.rs"]
 mod rigid_parts;
 #[path = "io/rigs.rs"]

@@ -5,10 +5,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use neural_cloth::io::UpAxis;
 use neural_cloth::io::scene_loader::{folder_split, load_scene, load_scene_file};
-use neural_cloth::scene::Scene;
+use neural_cloth::io::{IoError, UpAxis};
 use neural_cloth::scene::config::{AvatarSource, GarmentSource, MotionSource, SceneConfig};
+use neural_cloth::scene::{Scene, SceneError};
+use neural_cloth::train::preflight::fit_advice;
 
 /// The scene parts named on the command line.
 #[derive(Clone, Copy, Debug, Default)]
@@ -53,17 +54,42 @@ impl<'a> SceneArgs<'a> {
 pub fn scene_from_args(args: &SceneArgs<'_>) -> anyhow::Result<(Scene, SceneConfig)> {
     let (config, dir) = scene_config_from_args(args)?;
     let loaded = match args.scene {
-        Some(p) if !args.edits_scene() => load_scene_file(p)?,
+        Some(p) if !args.edits_scene() => load_scene_file(p),
         _ => load_scene(
             &config,
             &dir,
             args.scene.unwrap_or(Path::new("command line")),
-        )?,
-    };
+        ),
+    }
+    .map_err(|e| with_fit_advice(e, &config))?;
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
     }
     Ok((loaded.scene, config))
+}
+
+/// A garment too far from the body to be bound to it says what to do: place it with `fit`
+/// (`--skip-fit-check` cannot train it); the garment file stays last. Other errors pass as
+/// they are.
+fn with_fit_advice(error: IoError, config: &SceneConfig) -> anyhow::Error {
+    match error {
+        IoError::Scene {
+            source: source @ SceneError::GarmentFarFromBody { .. },
+            path,
+        } => {
+            let avatar = match &config.avatar {
+                AvatarSource::File { path, .. } => Some(path.as_path()),
+                AvatarSource::Builtin { .. } => None,
+            };
+            anyhow::anyhow!(
+                "{source} {} (a garment this far from the body cannot be trained, not even with \
+                 --skip-fit-check): {}",
+                fit_advice(avatar, &path),
+                path.display()
+            )
+        }
+        other => other.into(),
+    }
 }
 
 /// The scene description the arguments make (file paths absolute) and the folder its

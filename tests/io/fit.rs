@@ -231,6 +231,49 @@ fn training_refuses_a_garment_that_does_not_fit_and_says_what_to_do() {
 }
 
 #[test]
+fn a_garment_far_from_the_body_is_refused_with_the_fit_command_issue_13() {
+    let avatar = mannequin().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let original = builtin_garment(&avatar, GarmentKind::TShirt, RESOLUTION, None)
+        .unwrap()
+        .mesh;
+    // Moved 3 m to the side: too far to bind, so even --skip-fit-check cannot train it.
+    let far = write_obj(dir.path(), "far", &original, |p| {
+        p + Vec3::new(3.0, 0.0, 0.0)
+    });
+    let scene = scene_with_garment(dir.path(), &far);
+    let run = Command::new(env!("CARGO_BIN_EXE_neural-cloth"))
+        .args(["train", "--steps", "1", "--skip-fit-check", "--scene"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(dir.path().join("run"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "{stderr}");
+    let fitted = dir.path().join("far-fitted.obj");
+    let fit = format!(
+        "`neural-cloth fit --avatar mannequin --garment {} --out {}`",
+        far.display(),
+        fitted.display()
+    );
+    for needle in [
+        "invalid garment 'far': a vertex is",
+        fit.as_str(),
+        "not even with --skip-fit-check",
+    ] {
+        assert_eq!(
+            stderr.matches(needle).count(),
+            1,
+            "'{needle}' in:\n{stderr}"
+        );
+    }
+    let line = stderr.lines().find(|l| l.starts_with("error:")).unwrap();
+    assert!(line.ends_with(&format!(": {}", far.display())), "{line}");
+    assert!(!dir.path().join("run").exists());
+}
+
+#[test]
 fn a_garment_that_cannot_wrap_the_body_is_an_error_naming_the_file() {
     let avatar = mannequin().unwrap();
     let dir = tempfile::tempdir().unwrap();

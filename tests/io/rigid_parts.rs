@@ -14,10 +14,10 @@ use super::raw_gltf::RawGltf;
 
 /// Accessors packed into one binary buffer.
 #[derive(Default)]
-struct Packer {
-    bin: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
+pub(super) struct Packer {
+    pub(super) bin: Vec<u8>,
+    pub(super) views: Vec<Value>,
+    pub(super) accessors: Vec<Value>,
 }
 
 impl Packer {
@@ -33,7 +33,7 @@ impl Packer {
         self.accessors.len() - 1
     }
 
-    fn floats(&mut self, rows: &[Vec<f32>], ty: &str) -> usize {
+    pub(super) fn floats(&mut self, rows: &[Vec<f32>], ty: &str) -> usize {
         let bytes: Vec<u8> = rows
             .iter()
             .flatten()
@@ -83,7 +83,7 @@ impl Packer {
     }
 
     /// A mesh of one indexed triangle primitive.
-    fn mesh(&mut self, name: &str, points: &[[f32; 3]], tris: &[[u16; 3]]) -> Value {
+    pub(super) fn mesh(&mut self, name: &str, points: &[[f32; 3]], tris: &[[u16; 3]]) -> Value {
         let position = self.positions(points);
         let indices = self.indices(tris);
         json!({ "name": name, "primitives": [{ "attributes": { "POSITION": position }, "indices": indices }] })
@@ -91,7 +91,7 @@ impl Packer {
 }
 
 /// An axis-aligned box of half-size `h` (8 vertices, 12 triangles).
-fn cube(h: f32) -> (Vec<[f32; 3]>, Vec<[u16; 3]>) {
+pub(super) fn cube(h: f32) -> (Vec<[f32; 3]>, Vec<[u16; 3]>) {
     let points = (0..8)
         .map(|i| {
             let s = |bit: usize| if i & bit == 0 { -h } else { h };
@@ -121,7 +121,7 @@ fn tetra(s: f32) -> (Vec<[f32; 3]>, Vec<[u16; 3]>) {
     (points, vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
 }
 
-fn quat_json(q: &UnitQuaternion<f64>) -> Value {
+pub(super) fn quat_json(q: &UnitQuaternion<f64>) -> Value {
     json!([q.i, q.j, q.k, q.w])
 }
 
@@ -217,12 +217,12 @@ fn character() -> RawGltf {
     raw
 }
 
-fn glb(raw: &RawGltf) -> Vec<u8> {
+pub(super) fn glb(raw: &RawGltf) -> Vec<u8> {
     glb_bytes(&raw.json, &raw.buffers[0]).unwrap()
 }
 
 /// The positions of mesh `mesh` placed by node `node`'s world matrix.
-fn placed(raw: &RawGltf, node: usize, mesh_points: &[[f32; 3]]) -> Vec<Vector3<f64>> {
+pub(super) fn placed(raw: &RawGltf, node: usize, mesh_points: &[[f32; 3]]) -> Vec<Vector3<f64>> {
     let world: Matrix4<f64> = raw.world(node);
     mesh_points
         .iter()

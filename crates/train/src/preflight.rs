@@ -103,25 +103,34 @@ pub fn fit_refusal(
     if problems.is_empty() {
         return Ok(None);
     }
+    Ok(Some(format!(
+        "the garment '{}' does not fit avatar '{}': {}. {}; or train on it as it is: `train \
+         --skip-fit-check` (in the app: untick \"check the garment's fit\"): {}",
+        garment.name,
+        avatar.name,
+        problems.join("; "),
+        fit_advice(avatar_file, garment_file),
+        garment_file.display()
+    )))
+}
+
+/// What to do with a garment file that does not fit the avatar (the avatar's file, or `None`
+/// for the built-in mannequin): fit it first with `neural-cloth fit --avatar A --garment G
+/// --out G-fitted.obj` (in the app: Fit garment), then train on `G-fitted.obj`.
+pub fn fit_advice(avatar_file: Option<&Path>, garment_file: &Path) -> String {
     let stem = garment_file
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "garment".into());
     let fitted = garment_file.with_file_name(format!("{stem}-fitted.obj"));
-    Ok(Some(format!(
-        "the garment '{}' does not fit avatar '{}': {}. Fit it first: `neural-cloth fit \
-         --avatar {} --garment {} --out {}` (in the app: Fit garment), then train on {}; or \
-         train on it as it is: `train --skip-fit-check` (in the app: untick \"check the \
-         garment's fit\"): {}",
-        garment.name,
-        avatar.name,
-        problems.join("; "),
+    format!(
+        "Fit it first: `neural-cloth fit --avatar {} --garment {} --out {}` (in the app: Fit \
+         garment), then train on {}",
         avatar_file.map_or_else(|| "mannequin".into(), |p| p.display().to_string()),
         garment_file.display(),
         fitted.display(),
         fitted.display(),
-        garment_file.display()
-    )))
+    )
 }
 
 #[cfg(test)]
@@ -191,5 +200,11 @@ mod tests {
             assert!(why.contains(needle), "no '{needle}' in {why}");
         }
         assert!(why.ends_with("/shirts/shirt.obj"), "{why}");
+        assert_eq!(
+            fit_advice(Some(Path::new("/a/hero.glb")), file),
+            "Fit it first: `neural-cloth fit --avatar /a/hero.glb --garment /shirts/shirt.obj \
+             --out /shirts/shirt-fitted.obj` (in the app: Fit garment), then train on \
+             /shirts/shirt-fitted.obj"
+        );
     }
 }

@@ -5,13 +5,17 @@
 //! Several skins sharing joints become one skeleton. Joints are ordered so that parents come
 //! first; non-joint nodes between two joints become (unweighted) joints so local rotations stay
 //! exact; non-joint ancestors of root joints fold into `Skeleton::world_from_root_parent`. As
-//! the glTF spec requires, a skinned mesh node's own transform is ignored.
+//! the glTF spec requires, a skinned mesh node's own transform is ignored. A file in which no
+//! mesh is skinned is an avatar of rigid parts when its meshes hang from a skeleton (a skin's
+//! joints or a node hierarchy that reads as one, see `gltf_skinless`), else [`IoError::NoSkin`]
+//! says why it is not.
 
 use std::collections::HashMap;
 use std::path::Path;
 
 use super::gltf_body::{BindMesh, merge_body};
 use super::gltf_doc::GltfDoc;
+use super::gltf_skinless::{SkeletonNodes, SkeletonSource, Skinless, skinless};
 use super::{ImportOptions, IoError, LoadedAvatar, Units, check_fps, file_stem, read_bytes};
 use crate::geometry::{Mat4, Vec3, linear_blend_skin};
 use crate::scene::{Avatar, Skeleton};
@@ -33,6 +37,7 @@ pub fn load_avatar_from_bytes(
     let mut warnings = Vec::new();
     let rig = build_rig(&doc, &mut warnings)?;
     let (BindMesh { mesh, skin }, meshes) = merge_body(&doc, &rig, &mut warnings)?;
+    let skeleton_source = rig.source.clone();
     let mut skeleton = rig.skeleton;
     let scene_err = |source| IoError::Scene {
         source,
@@ -84,6 +89,7 @@ pub fn load_avatar_from_bytes(
         up,
         warnings,
         meshes,
+        skeleton_source,
     })
 }
 
@@ -97,6 +103,8 @@ pub(crate) struct Rig {
     pub skins: Vec<SkinInfo>,
     /// Joints that are not skin joints (non-joint nodes between two joints).
     pub added: Vec<usize>,
+    /// Where the skeleton came from.
+    pub source: SkeletonSource,
 }
 
 /// One skin used by a skinned mesh.
@@ -109,7 +117,8 @@ pub(crate) struct SkinInfo {
     pub bind_fix: Mat4,
 }
 
-/// Builds the unified skeleton of all skins used by skinned mesh nodes.
+/// Builds the unified skeleton of all skins used by skinned mesh nodes; in a file without
+/// skinned meshes, the skeleton its rigid parts hang from (see `gltf_skinless`).
 pub(crate) fn build_rig(doc: &GltfDoc, warnings: &mut Vec<String>) -> Result<Rig, IoError> {
     let mut skin_indices: Vec<usize> = Vec::new();
     for node in doc.doc.nodes() {
@@ -119,18 +128,36 @@ pub(crate) fn build_rig(doc: &GltfDoc, warnings: &mut Vec<String>) -> Result<Rig
             skin_indices.push(skin.index());
         }
     }
-    if skin_indices.is_empty() {
-        return Err(IoError::NoSkin {
-            path: doc.path.clone(),
-        });
-    }
+    // Without skinned meshes: an avatar of rigid parts (the joints of a skin its meshes hang
+    // from, or its node hierarchy), or no avatar at all.
+    let mut hierarchy: Vec<usize> = Vec::new();
+    let source = if skin_indices.is_empty() {
+        match skinless(doc)? {
+            Skinless::Avatar { nodes, source } => {
+                match nodes {
+                    SkeletonNodes::Skins(skins) => skin_indices = skins,
+                    SkeletonNodes::Nodes(nodes) => hierarchy = nodes,
+                }
+                source
+            }
+            Skinless::Plain(why) => {
+                return Err(IoError::NoSkin {
+                    why,
+                    path: doc.path.clone(),
+                });
+            }
+        }
+    } else {
+        SkeletonSource::SkinnedMeshes
+    };
     let skins: Vec<gltf::Skin> = doc
         .doc
         .skins()
         .filter(|s| skin_indices.contains(&s.index()))
         .collect();
 
-    // Joint nodes: union of skin joints, then nodes between a joint and its nearest joint ancestor.
+    // Joint nodes: union of skin joints (or the hierarchy of rigid parts), then nodes between a
+    // joint and its nearest joint ancestor.
     let mut nodes: Vec<usize> = Vec::new();
     for skin in &skins {
         let joints: Vec<usize> = skin.joints().map(|n| n.index()).collect();
@@ -143,6 +170,7 @@ pub(crate) fn build_rig(doc: &GltfDoc, warnings: &mut Vec<String>) -> Result<Rig
             }
         }
     }
+    nodes.extend(hierarchy);
     let mut is_joint: std::collections::HashSet<usize> = nodes.iter().copied().collect();
     let mut added = Vec::new();
     for k in 0..nodes.len() {
@@ -314,6 +342,7 @@ pub(crate) fn build_rig(doc: &GltfDoc, warnings: &mut Vec<String>) -> Result<Rig
         joint_of_node,
         skins: infos,
         added,
+        source,
     })
 }
 

@@ -36,7 +36,7 @@ pub fn inspect_with(path: &Path, options: &ImportOptions) -> Result<String, IoEr
         "glb" | "gltf" => match super::load_avatar(path, &options) {
             Ok(loaded) => {
                 let a = &loaded.avatar;
-                let _ = writeln!(out, "kind: skinned glTF avatar");
+                let _ = writeln!(out, "kind: {}", loaded.skeleton_source);
                 units_line(&mut out, options.units, loaded.units);
                 up_line(&mut out, options.up, loaded.up, false);
                 let _ = writeln!(out, "height: {:.3} m", a.height_m());
@@ -57,9 +57,13 @@ pub fn inspect_with(path: &Path, options: &ImportOptions) -> Result<String, IoEr
                 gltf_contents(&mut out, path)?;
                 warnings(&mut out, &loaded.warnings);
             }
-            Err(IoError::NoSkin { .. }) => {
+            Err(IoError::NoSkin { why, .. }) => {
                 let loaded = super::load_gltf_mesh(path, &options)?;
-                let _ = writeln!(out, "kind: glTF mesh without a skin (usable as a garment)");
+                let _ = writeln!(
+                    out,
+                    "kind: glTF mesh without a skin (usable as a garment; not an avatar of \
+                     rigid parts: {why})"
+                );
                 static_mesh(&mut out, &options, &loaded, true);
                 gltf_contents(&mut out, path)?;
                 warnings(&mut out, &loaded.warnings);

@@ -19,6 +19,7 @@ pub mod gltf_avatar;
 mod gltf_body;
 mod gltf_doc;
 pub mod gltf_mesh;
+mod gltf_skinless;
 pub mod inspect;
 mod inspect_contents;
 pub mod joint_map;
@@ -36,6 +37,7 @@ pub use bvh::{Bvh, BvhChannel, BvhJoint, load_bvh};
 pub use gltf_avatar::{load_avatar, load_avatar_from_bytes};
 pub use gltf_body::{MeshUsage, MeshUse};
 pub use gltf_mesh::{load_gltf_mesh, load_gltf_mesh_from_bytes};
+pub use gltf_skinless::SkeletonSource;
 pub use inspect::inspect;
 pub use joint_map::{JointMap, JointMapping, map_joints};
 pub use joint_names::canonical_joint_name;
@@ -99,6 +101,9 @@ pub struct LoadedAvatar {
     /// Every mesh of the file and what became of it: skinned body part, rigid part of a joint,
     /// or ignored (and why).
     pub meshes: Vec<MeshUse>,
+    /// Where the skeleton came from: the skins of skinned meshes or, in an avatar built only of
+    /// rigid parts, the skin or node hierarchy they hang from.
+    pub skeleton_source: SkeletonSource,
 }
 
 /// Errors of the I/O layer. The offending file's path always comes last in the message.
@@ -148,9 +153,16 @@ pub enum IoError {
         /// The file.
         path: PathBuf,
     },
-    /// A glTF file was loaded as an avatar but no mesh is skinned.
-    #[error("glTF without a skin (no node has both a mesh and a skin): {}", path.display())]
+    /// A glTF file was loaded as an avatar but no mesh is skinned and its meshes hang from no
+    /// skeleton (it is not an avatar of rigid parts either).
+    #[error(
+        "glTF without a skin (no node has both a mesh and a skin) and not an avatar of rigid \
+         parts ({why}): {}",
+        path.display()
+    )]
     NoSkin {
+        /// Why its meshes do not make an avatar of rigid parts.
+        why: String,
         /// The file.
         path: PathBuf,
     },
@@ -254,7 +266,7 @@ impl IoError {
             | Self::NotGltf { path, .. }
             | Self::Truncated { path, .. }
             | Self::InvalidGltf { path, .. }
-            | Self::NoSkin { path }
+            | Self::NoSkin { path, .. }
             | Self::NoMesh { path }
             | Self::Syntax { path, .. }
             | Self::NonFinite { path, .. }

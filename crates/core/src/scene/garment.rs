@@ -215,12 +215,10 @@ pub fn transfer_skin_weights(
     // A NaN distance fails the check too.
     let within = farthest <= options.max_distance_m;
     if !within {
-        return Err(SceneError::InvalidGarment {
+        return Err(SceneError::GarmentFarFromBody {
             name: name.into(),
-            reason: format!(
-                "a vertex is {farthest:.3} m from the body (limit {:.3} m): is the garment in the avatar's rest pose and units?",
-                options.max_distance_m
-            ),
+            farthest_m: farthest,
+            limit_m: options.max_distance_m,
         });
     }
     for _ in 0..options.smoothing_passes {

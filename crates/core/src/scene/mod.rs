@@ -48,6 +48,20 @@ pub enum SceneError {
         /// What is wrong.
         reason: String,
     },
+    /// A garment vertex is farther from the body than skin weights can be taken over: the
+    /// garment is placed for another body, in other units or away from this one.
+    #[error(
+        "invalid garment '{name}': a vertex is {farthest_m:.3} m from the body (limit \
+         {limit_m:.3} m): is the garment in the avatar's rest pose and units?"
+    )]
+    GarmentFarFromBody {
+        /// Garment name.
+        name: String,
+        /// Distance of its farthest vertex from the nearest body vertex, metres.
+        farthest_m: f32,
+        /// The limit ([`GarmentOptions::max_distance_m`]), metres.
+        limit_m: f32,
+    },
     /// A mesh failed validation.
     #[error("{what}: {source}")]
     Mesh {
