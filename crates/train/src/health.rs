@@ -75,8 +75,8 @@ pub fn assess(record: &MetricRecord, limits: &HealthLimits) -> Vec<Unhealthy> {
         ),
     ]
     .into_iter()
-    // `!(v <= limit)` also catches a value that is not finite.
-    .filter(|(_, value, limit, _)| !(*value <= *limit))
+    // A value that is not finite is broken too.
+    .filter(|(_, value, limit, _)| !value.is_finite() || value > limit)
     .map(|(metric, value, limit, healthy)| Unhealthy {
         metric,
         value,
