@@ -13,7 +13,8 @@ use neural_cloth::scene::config::SceneConfig;
 use neural_cloth::train::retention::{MAX_KEEP_NEWEST, Retention};
 
 use neural_cloth::train::{
-    BackendKind, RunDir, RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer, resume,
+    BackendKind, BasisRowNorm, RunDir, RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer,
+    resume,
 };
 
 /// Arguments of `train`.
@@ -152,6 +153,12 @@ pub struct TrainArgs {
     /// (default false; see docs/TRAINING.md round 8)
     #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
     pub precondition_dynamic_only: Option<bool>,
+    /// Adam normalises each row of these decoder bases by one second moment shared over the
+    /// garment's vertex coordinates, so a row moves along the physics gradient's shape instead
+    /// of every coordinate by about the rate: off, dynamic (the dynamic basis) or both
+    /// (default off; CPU backend only; see docs/TRAINING.md round 14)
+    #[arg(long, value_enum)]
+    pub basis_row_norm: Option<BasisRowNormArg>,
     /// Final stiffness scale of the gradient filter: with --steps, β moves geometrically from
     /// --precondition to it over the run (default: constant)
     #[arg(long)]
@@ -207,6 +214,27 @@ impl TrainArgs {
             joint_map: self.joint_map.as_deref(),
             up: self.up,
             training_fps: self.fps,
+        }
+    }
+}
+
+/// The bases whose Adam rows share one second moment, on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum BasisRowNormArg {
+    /// Every value its own second moment (burn's Adam).
+    Off,
+    /// The dynamic basis.
+    Dynamic,
+    /// The shared basis and the dynamic basis.
+    Both,
+}
+
+impl From<BasisRowNormArg> for BasisRowNorm {
+    fn from(arg: BasisRowNormArg) -> Self {
+        match arg {
+            BasisRowNormArg::Off => Self::Off,
+            BasisRowNormArg::Dynamic => Self::Dynamic,
+            BasisRowNormArg::Both => Self::Both,
         }
     }
 }
@@ -361,6 +389,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(dynamic_only) = args.precondition_dynamic_only {
         train.precondition_dynamic_only = dynamic_only;
+    }
+    if let Some(which) = args.basis_row_norm {
+        train.basis_row_norm = which.into();
     }
     if let Some(b) = args.precondition_final {
         train.precondition_final_stiffness = Some(b);

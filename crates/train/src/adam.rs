@@ -24,7 +24,7 @@ use burn::tensor::{Bytes, DType, Tensor, TensorData};
 use burn_pack::{Reader, Scalar, Writer};
 use rayon::prelude::*;
 
-use super::config::{BackendKind, TrainConfig};
+use super::config::{BackendKind, BasisRowNorm, TrainConfig};
 
 /// Adam's first-moment decay (burn's default, [`AdamConfig::new`]).
 pub const BETA_1: f32 = 0.9;
@@ -136,6 +136,9 @@ pub struct FusedAdam {
     beta_1: f32,
     beta_2: f32,
     epsilon: f32,
+    /// Which decoder bases have each row normalised by one second moment
+    /// ([`super::TrainConfig::basis_row_norm`]).
+    basis_row_norm: BasisRowNorm,
     states: HashMap<ParamId, Moments>,
 }
 
@@ -145,6 +148,7 @@ impl Default for FusedAdam {
             beta_1: BETA_1,
             beta_2: BETA_2,
             epsilon: EPSILON,
+            basis_row_norm: BasisRowNorm::Off,
             states: HashMap::new(),
         }
     }
@@ -154,6 +158,16 @@ impl FusedAdam {
     /// A fresh optimiser with burn's defaults (`AdamConfig::new()`).
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// The same optimiser, normalising each row of the decoder bases that `which` names
+    /// (`[latent, V·3]` weights at module path `…basis` or `…dynamic_basis`) by one second
+    /// moment shared by the row's entries ([`super::TrainConfig::basis_row_norm`]); every
+    /// other parameter keeps burn's per-value Adam. The saved record keeps its format: the
+    /// shared moment is stored in every entry of its row.
+    pub fn with_basis_row_norm(mut self, which: BasisRowNorm) -> Self {
+        self.basis_row_norm = which;
+        self
     }
 
     /// Updates every parameter of `module` that has a gradient in `grads` with learning rate
@@ -250,8 +264,15 @@ impl FusedAdam {
         moments.time += 1;
         moments.shape = shape;
         let k = Coefficients::new(self.beta_1, self.beta_2, self.epsilon, moments.time, lr);
+        let row_len = self
+            .basis_row_norm
+            .covers(moments.path.as_deref(), &moments.shape)
+            .then(|| moments.shape[1]);
         let (m, v) = (Arc::make_mut(&mut moments.m), Arc::make_mut(&mut moments.v));
-        update_all(p, g, m, v, &k);
+        match row_len {
+            Some(row_len) => update_rows(p, g, m, v, row_len, &k),
+            None => update_all(p, g, m, v, &k),
+        }
         Ok(Tensor::from_data(data, &device))
     }
 
@@ -373,6 +394,53 @@ fn update_all(p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], k: &Coeffi
         .zip(m.par_chunks_mut(CHUNK))
         .zip(v.par_chunks_mut(CHUNK))
         .for_each(|(((p, g), m), v)| update_chunk(p, g, m, v, k));
+}
+
+impl BasisRowNorm {
+    /// True for a rank-2 parameter (`[latent, V·3]`) whose module path names a basis this
+    /// setting normalises by rows (`basis`: the shared basis, `dynamic_basis`: the dynamic
+    /// one).
+    fn covers(self, path: Option<&str>, shape: &[usize]) -> bool {
+        let names: &[&str] = match self {
+            Self::Off => return false,
+            Self::Dynamic => &["dynamic_basis"],
+            Self::Both => &["basis", "dynamic_basis"],
+        };
+        shape.len() == 2
+            && shape[1] > 0
+            && path.is_some_and(|p| p.split('.').any(|part| names.contains(&part)))
+    }
+}
+
+/// Adam with one second moment per row of `row_len` values: `m ← β₁m + (1-β₁)g` per value,
+/// `v_row ← β₂v_row + (1-β₂)·mean(g²)` over the row, `θ ← θ - lr · (c·m) / (√v_row + ε')`.
+/// Within a row the update keeps the shape of the (averaged) gradient instead of moving every
+/// value by about the rate: for a basis row, a pattern over the garment's vertices, the
+/// physics gradient's smooth field stays smooth. `v` holds the row's moment in every entry.
+fn update_rows(
+    p: &mut [f32],
+    g: &[f32],
+    m: &mut [f32],
+    v: &mut [f32],
+    row_len: usize,
+    k: &Coefficients,
+) {
+    p.par_chunks_mut(row_len)
+        .zip(g.par_chunks(row_len))
+        .zip(m.par_chunks_mut(row_len))
+        .zip(v.par_chunks_mut(row_len))
+        .for_each(|(((p, g), m), v)| {
+            let mean_g2 =
+                g.iter().map(|&x| f64::from(x) * f64::from(x)).sum::<f64>() / g.len().max(1) as f64;
+            let shared = v.first().copied().unwrap_or(0.0) * k.beta_2
+                + (mean_g2 as f32) * k.one_minus_beta_2;
+            let denominator = shared.sqrt() + k.epsilon;
+            for (((p, &g), m), v) in p.iter_mut().zip(g).zip(m.iter_mut()).zip(v.iter_mut()) {
+                *m = *m * k.beta_1 + g * k.one_minus_beta_1;
+                *v = shared;
+                *p -= ((*m * k.combined) / denominator) * k.lr;
+            }
+        });
 }
 
 /// One chunk of [`update_all`], compiled for AVX2 where the CPU has it (the same IEEE
@@ -499,6 +567,16 @@ impl TrainOptimiser {
     /// backend is the CPU one (whose parameters live on the host), burn's otherwise.
     pub fn for_config(config: &TrainConfig) -> Self {
         Self::new(config.fused_adam && config.backend == BackendKind::Cpu)
+            .with_basis_row_norm(config.basis_row_norm)
+    }
+
+    /// The same optimiser with [`FusedAdam::with_basis_row_norm`] set (burn's Adam has no
+    /// such mode: [`TrainConfig::validate`] refuses the setting without the fused one).
+    pub fn with_basis_row_norm(self, which: BasisRowNorm) -> Self {
+        match self {
+            Self::Fused(adam) => Self::Fused(adam.with_basis_row_norm(which)),
+            burn => burn,
+        }
     }
 
     /// True for the fused optimiser.
@@ -550,7 +628,8 @@ impl TrainOptimiser {
                 .from_bytes(bytes)
                 .map(Self::Burn)
                 .map_err(|e| AdamError::Record(e.to_string())),
-            Self::Fused(_) => FusedAdam::from_bytes(bytes).map(Self::Fused),
+            Self::Fused(adam) => FusedAdam::from_bytes(bytes)
+                .map(|loaded| Self::Fused(loaded.with_basis_row_norm(adam.basis_row_norm))),
         }
     }
 }

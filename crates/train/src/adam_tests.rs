@@ -235,3 +235,132 @@ fn the_config_picks_the_fused_adam_on_the_cpu_only() {
     };
     assert!(!TrainOptimiser::for_config(&off).is_fused());
 }
+
+/// A module with a field named like the decoder's basis (`[latent, V·3]`, bias-free) and an
+/// ordinary layer.
+#[derive(Module, Debug)]
+struct WithBasis {
+    basis: Linear,
+    other: Linear,
+}
+
+/// One step of the optimiser on `model` with the loss `Σ basis ⊙ target_b + Σ other ⊙
+/// target_o` (so the gradients are exactly the targets).
+fn step_with_gradients(optim: &mut TrainOptimiser, model: &mut WithBasis, d: &Device) {
+    let target_b: Vec<f32> = (0..4 * 12).map(|i| 0.01 * (i as f32 + 1.0)).collect();
+    let target_o: Vec<f32> = (0..3 * 2).map(|i| 0.5 - 0.2 * i as f32).collect();
+    let tb = Tensor::<1>::from_floats(target_b.as_slice(), d).reshape([4, 12]);
+    let to = Tensor::<1>::from_floats(target_o.as_slice(), d).reshape([3, 2]);
+    let loss = (model.basis.weight.val() * tb).sum() + (model.other.weight.val() * to).sum();
+    let g = GradientsParams::from_grads(loss.backward(), &*model);
+    optim.step(1e-2, model, g).unwrap();
+}
+
+fn weights(l: &Linear) -> Vec<f32> {
+    l.weight.val().inner().try_into_vec_as::<f32>().unwrap()
+}
+
+#[test]
+fn row_normalised_basis_rows_move_along_the_gradient_and_other_layers_as_before() {
+    let d = device();
+    let start = WithBasis {
+        basis: LinearConfig::new(4, 12).with_bias(false).init(&d),
+        other: LinearConfig::new(3, 2).with_bias(false).init(&d),
+    };
+    let mut plain_model = start.clone();
+    let mut row_model = start.clone();
+    let mut plain = TrainOptimiser::new(true);
+    let mut row = TrainOptimiser::new(true).with_basis_row_norm(BasisRowNorm::Both);
+    step_with_gradients(&mut plain, &mut plain_model, &d);
+    step_with_gradients(&mut row, &mut row_model, &d);
+    let before = weights(&start.basis);
+    // Per-value Adam's first step moves every value by the rate (sign of the gradient).
+    for (a, b) in weights(&plain_model.basis).iter().zip(&before) {
+        assert!(((b - a) - 1e-2).abs() < 1e-4, "per-value step {}", b - a);
+    }
+    // Row-normalised: each row's step is the row's gradient over its root mean square.
+    for r in 0..4 {
+        let g: Vec<f32> = (0..12)
+            .map(|c| 0.01 * ((r * 12 + c) as f32 + 1.0))
+            .collect();
+        let rms = (g.iter().map(|x| x * x).sum::<f32>() / 12.0).sqrt();
+        for c in 0..12 {
+            let i = r * 12 + c;
+            let step = before[i] - weights(&row_model.basis)[i];
+            let expected = 1e-2 * g[c] / rms;
+            assert!(
+                (step - expected).abs() < 1e-3 * expected.abs().max(1e-3) + 1e-6,
+                "row {r} value {c}: step {step} against {expected}"
+            );
+        }
+    }
+    // Layers that are not a basis keep burn's per-value Adam.
+    assert_close(
+        &weights(&row_model.other),
+        &weights(&plain_model.other),
+        "other layer",
+    );
+    // `Dynamic` normalises the dynamic basis only: a field named `basis` steps per value.
+    let mut dynamic_model = start.clone();
+    let mut dynamic = TrainOptimiser::new(true).with_basis_row_norm(BasisRowNorm::Dynamic);
+    step_with_gradients(&mut dynamic, &mut dynamic_model, &d);
+    assert_close(
+        &weights(&dynamic_model.basis),
+        &weights(&plain_model.basis),
+        "dynamic only",
+    );
+    // The record keeps the mode out of its format: a resumed row-normalised optimiser steps
+    // as the one it was saved from.
+    let saved = row.to_bytes().unwrap();
+    let mut resumed = TrainOptimiser::new(true)
+        .with_basis_row_norm(BasisRowNorm::Both)
+        .load_bytes(saved)
+        .unwrap();
+    let mut a = row_model.clone();
+    let mut b = row_model.clone();
+    step_with_gradients(&mut row, &mut a, &d);
+    step_with_gradients(&mut resumed, &mut b, &d);
+    assert_close(&weights(&a.basis), &weights(&b.basis), "resumed basis");
+}
+
+#[test]
+fn the_networks_two_bases_are_the_ones_normalised_by_rows() {
+    let d = device();
+    let config = neural_cloth_model::ClothNetConfig {
+        static_hidden: vec![8],
+        joint_hidden: vec![4, 4],
+        dynamic_hidden: vec![16],
+        latent: 12,
+        decoder_hidden: vec![10],
+        dynamic_basis: true,
+        ..Default::default()
+    };
+    for (which, expected) in [
+        (BasisRowNorm::Off, 0),
+        (BasisRowNorm::Dynamic, 1),
+        (BasisRowNorm::Both, 2),
+    ] {
+        let mut model = config.init(3, 5, &d).unwrap();
+        let dynamic = model.decoder.dynamic_basis_weight().unwrap();
+        let loss = (model.decoder.basis_weight() * model.decoder.basis_weight()).sum()
+            + (dynamic.clone() * dynamic).sum();
+        let g = GradientsParams::from_grads(loss.backward(), &model);
+        let mut adam = FusedAdam::new().with_basis_row_norm(which);
+        adam.step(1e-3, &mut model, g).unwrap();
+        let covered: Vec<&str> = adam
+            .states
+            .values()
+            .filter(|s| which.covers(s.path.as_deref(), &s.shape))
+            .filter_map(|s| s.path.as_deref())
+            .collect();
+        assert_eq!(covered.len(), expected, "{which:?}: {covered:?}");
+        // The covered rows hold one second moment each.
+        for s in adam.states.values() {
+            if which.covers(s.path.as_deref(), &s.shape) {
+                for row in s.v.chunks(s.shape[1]) {
+                    assert!(row.iter().all(|&x| x == row[0]), "{:?}", s.path);
+                }
+            }
+        }
+    }
+}

@@ -15,6 +15,19 @@ pub enum InertiaMode {
     Snug,
 }
 
+/// Which decoder bases Adam normalises by rows ([`TrainConfig::basis_row_norm`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BasisRowNorm {
+    /// Every parameter value has its own second moment (burn's Adam).
+    #[default]
+    Off,
+    /// The dynamic basis's rows (trained by the moving windows' filtered gradient only).
+    Dynamic,
+    /// The shared basis's rows and the dynamic basis's.
+    Both,
+}
+
 /// Which compute backend trains the model.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -181,6 +194,14 @@ pub struct TrainConfig {
     /// the full filter lifts it 4.8-5.6 mm, and loses most of the swing (run 3.8-4.7 mm of the
     /// simulator's 12.0; docs/TRAINING.md round 8).
     pub precondition_dynamic_only: bool,
+    /// Adam normalises each row of the decoder's bases (one latent direction's pattern over
+    /// every vertex coordinate) by one second moment, the mean of the row's, instead of each
+    /// value by its own ([`super::adam::FusedAdam::with_basis_row_norm`]): per-value Adam moves
+    /// every vertex coordinate of a row by about the rate whatever its gradient, which turns
+    /// the smooth field of the (filtered) physics gradient into a field of equal steps; with
+    /// one moment per row the row moves along the gradient's own shape. Needs the fused Adam
+    /// (the CPU backend). Default `off`.
+    pub basis_row_norm: BasisRowNorm,
 }
 
 impl Default for TrainConfig {
@@ -218,6 +239,7 @@ impl Default for TrainConfig {
             precondition_moving_only: true,
             precondition_final_stiffness: None,
             precondition_dynamic_only: false,
+            basis_row_norm: BasisRowNorm::Off,
         }
     }
 }
@@ -383,6 +405,13 @@ impl TrainConfig {
                 "(0, 100]",
             )?;
         }
+        check(
+            self.basis_row_norm == BasisRowNorm::Off
+                || (self.fused_adam && self.backend == BackendKind::Cpu),
+            "basis_row_norm",
+            format!("{:?}", self.basis_row_norm),
+            "false unless the fused Adam of the CPU backend trains",
+        )?;
         if let Some(m) = self.max_minutes {
             check(m.is_finite() && m > 0.0, "max_minutes", m, "> 0")?;
         }

@@ -31,7 +31,7 @@ pub mod session;
 pub mod trained;
 pub mod warm_start;
 
-pub use config::{BackendKind, InertiaMode, TrainConfig};
+pub use config::{BackendKind, BasisRowNorm, InertiaMode, TrainConfig};
 pub use eval::{EvalReport, evaluate};
 pub use handle::{LiveSetting, RunSummary, TrainCommand, TrainEvent, TrainerHandle};
 pub use metrics::{MetricHistory, MetricRecord};
