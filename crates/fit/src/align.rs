@@ -106,6 +106,10 @@ pub struct AlignSettings {
     pub fixed_scale: Option<f32>,
     /// A fixed offset of the centre instead of an estimated one, metres.
     pub fixed_offset_m: Option<Vec3>,
+    /// Whether the garment has openings for the arms (sleeves or armholes,
+    /// [`super::openings::has_arm_openings`]); one without them (a skirt) is placed below
+    /// the shoulders.
+    pub arm_openings: bool,
 }
 
 /// The garment points and their weights (vertex areas), with the placement's centre.
@@ -493,6 +497,7 @@ mod tests {
             scale_range: (0.5, 2.0),
             fixed_scale: None,
             fixed_offset_m: None,
+            arm_openings: true,
         };
         let scales = search_scales(&s);
         assert!(scales.iter().any(|&x| (x - 1.0).abs() < 1e-6));

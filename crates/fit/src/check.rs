@@ -9,7 +9,7 @@ use neural_cloth_core::scene::Avatar;
 
 use super::align::{AlignSettings, Placement, Points};
 use super::probe::{BodyProbe, bounds_of};
-use super::{FitError, FitOptions, place, repose};
+use super::{FitError, FitOptions, openings, place, repose};
 
 /// Limits beyond which a garment is clearly wrong for the avatar.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -92,6 +92,7 @@ pub fn check_fit(
         scale_range: options.scale_range,
         fixed_scale: None,
         fixed_offset_m: None,
+        arm_openings: openings::has_arm_openings(mesh),
     };
     let start = Placement::identity((lo + hi) * 0.5);
     let points = Points {

@@ -20,10 +20,13 @@
 
 pub mod align;
 pub mod check;
+pub mod openings;
 mod place;
 pub mod probe;
 pub mod relax;
 pub mod repose;
+#[cfg(test)]
+mod test_support;
 mod units;
 mod write;
 
@@ -392,6 +395,7 @@ fn place_mesh(
         scale_range: options.scale_range,
         fixed_scale: options.scale,
         fixed_offset_m: options.offset_m,
+        arm_openings: openings::has_arm_openings(given),
     };
     let mut start = Placement::identity(centre_m);
     start.mirrored = options.mirror == MirrorMode::Flip;

@@ -9,6 +9,7 @@ use neural_cloth_core::scene::{Avatar, Pose};
 use neural_cloth_physics::PosedBody;
 
 use super::FitError;
+use super::repose::Arms;
 
 /// Height of one horizontal band of [`BodyProbe`]'s per-height extents, metres.
 const BIN_M: f32 = 0.01;
@@ -24,6 +25,9 @@ pub struct BodyProbe {
     bands: Vec<Option<[f32; 4]>>,
     /// Heights of the crotch and the neck, metres, when the body has them.
     trunk_m: Option<(f32, f32)>,
+    /// Height of the shoulders (the mean of the upper-arm joints), metres, when the avatar
+    /// has two arms.
+    shoulders_m: Option<f32>,
 }
 
 impl BodyProbe {
@@ -63,12 +67,18 @@ impl BodyProbe {
                 lo_m.y + (n as f32 + 0.5) * BIN_M,
             )
         });
+        let shoulders_m = Arms::of(avatar).map(|arms| {
+            let joints = avatar.skeleton.joint_positions(pose);
+            let [left, right] = arms.joints();
+            0.5 * (joints[left].y + joints[right].y)
+        });
         Ok(Self {
             body,
             lo_m,
             hi_m,
             bands,
             trunk_m,
+            shoulders_m,
         })
     }
 
@@ -76,6 +86,13 @@ impl BodyProbe {
     /// the shoulders and the top of the head), metres; `None` for a body without them.
     pub fn trunk_m(&self) -> Option<(f32, f32)> {
         self.trunk_m
+    }
+
+    /// Height of the shoulders (the mean height of the upper-arm joints), metres; `None` for
+    /// an avatar without two arms. A garment without openings for the arms is worn below
+    /// them.
+    pub fn shoulders_m(&self) -> Option<f32> {
+        self.shoulders_m
     }
 
     /// Lower and upper corners of the body's bounding box, metres.

@@ -96,6 +96,11 @@ impl Arms {
         })
     }
 
+    /// The left and right upper-arm joints.
+    pub fn joints(&self) -> [usize; 2] {
+        [self.sides[0].0, self.sides[1].0]
+    }
+
     /// The joints [`Arms::pose`] moves: both upper arms and every joint below them.
     pub fn moved_joints(&self, sk: &neural_cloth_core::scene::Skeleton) -> Vec<bool> {
         let mut moved = vec![false; sk.len()];
