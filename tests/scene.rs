@@ -539,13 +539,19 @@ fn default_scene_builds_from_the_asset() {
     let config = SceneConfig::from_toml_str(&text).unwrap();
     let scene = procedural::build_builtin(&config).unwrap();
     assert_eq!(scene.name, "default");
-    assert_eq!(scene.motions.len(), MotionKind::ALL.len());
+    // Every built-in motion but the range-of-motion clip, which training on did not help
+    // (docs/TRAINING.md, round 13).
+    let expected: Vec<MotionKind> = MotionKind::ALL
+        .into_iter()
+        .filter(|k| *k != MotionKind::Rom)
+        .collect();
+    assert_eq!(scene.motions.len(), expected.len());
     assert_eq!(scene.training_fps, 30.0);
     assert_eq!(scene.fabric.preset_name(), Some("default"));
     assert!(scene.effects.dynamics && !scene.effects.pinning);
     let names: Vec<&str> = scene.motions.iter().map(|(m, _)| m.name.as_str()).collect();
-    for kind in MotionKind::ALL {
-        assert!(names.contains(&kind.name()));
+    for kind in expected {
+        assert!(names.contains(&kind.name()), "{}", kind.name());
     }
     for split in [Split::Train, Split::Validation, Split::Test] {
         assert!(scene.motions_in(split).count() >= 1, "{split:?}");
