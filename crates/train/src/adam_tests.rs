@@ -284,10 +284,11 @@ fn row_normalised_basis_rows_move_along_the_gradient_and_other_layers_as_before(
             .map(|c| 0.01 * ((r * 12 + c) as f32 + 1.0))
             .collect();
         let rms = (g.iter().map(|x| x * x).sum::<f32>() / 12.0).sqrt();
-        for c in 0..12 {
+        let after = weights(&row_model.basis);
+        for (c, g) in g.iter().enumerate() {
             let i = r * 12 + c;
-            let step = before[i] - weights(&row_model.basis)[i];
-            let expected = 1e-2 * g[c] / rms;
+            let step = before[i] - after[i];
+            let expected = 1e-2 * g / rms;
             assert!(
                 (step - expected).abs() < 1e-3 * expected.abs().max(1e-3) + 1e-6,
                 "row {r} value {c}: step {step} against {expected}"
