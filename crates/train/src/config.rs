@@ -513,6 +513,28 @@ mod tests {
         .validate(30.0)
         .unwrap_err();
         assert_eq!(e.field, "batch_size");
+        // Row-normalised bases need the fused Adam of the CPU backend.
+        let e = TrainConfig {
+            basis_row_norm: BasisRowNorm::Dynamic,
+            backend: BackendKind::Wgpu,
+            ..Default::default()
+        }
+        .validate(30.0)
+        .unwrap_err();
+        assert_eq!(e.field, "basis_row_norm");
+        let e = TrainConfig {
+            basis_row_norm: BasisRowNorm::Both,
+            fused_adam: false,
+            ..Default::default()
+        }
+        .validate(30.0)
+        .unwrap_err();
+        assert_eq!(e.field, "basis_row_norm");
+        let cpu = TrainConfig {
+            basis_row_norm: BasisRowNorm::Both,
+            ..Default::default()
+        };
+        assert!(cpu.validate(30.0).is_ok());
         // The rate is the scene's: checked against the trainer's range by its own name.
         let e = TrainConfig::default().validate(2.0).unwrap_err();
         assert_eq!(e.field, "training_fps");
