@@ -153,11 +153,6 @@ pub struct TrainArgs {
     /// (default false; see docs/TRAINING.md round 8)
     #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
     pub precondition_dynamic_only: Option<bool>,
-    /// The filter leaves the contact terms' gradient plain (collision, friction, pinning),
-    /// filtering the cloth and inertia terms only (default false; see docs/TRAINING.md
-    /// round 15)
-    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
-    pub precondition_plain_contacts: Option<bool>,
     /// Adam normalises each row of these decoder bases by one second moment shared over the
     /// garment's vertex coordinates, so a row moves along the physics gradient's shape instead
     /// of every coordinate by about the rate: off, dynamic (the dynamic basis) or both
@@ -394,9 +389,6 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(dynamic_only) = args.precondition_dynamic_only {
         train.precondition_dynamic_only = dynamic_only;
-    }
-    if let Some(plain) = args.precondition_plain_contacts {
-        train.precondition_plain_contacts = plain;
     }
     if let Some(which) = args.basis_row_norm {
         train.basis_row_norm = which.into();

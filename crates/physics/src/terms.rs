@@ -401,49 +401,6 @@ impl PhysicsTerms {
         })
     }
 
-    /// The collision loss alone (batch mean) of `x` (`[B, V, 3]`) against `contacts`: the
-    /// value and gradient [`Self::static_losses_with`] reports as its collision term. None
-    /// when collision is off.
-    pub fn collision_loss(
-        &self,
-        x: &Tensor<3>,
-        contacts: &Contacts,
-    ) -> Result<Option<Tensor<1>>, PhysicsError> {
-        if !self.effects.collision {
-            return Ok(None);
-        }
-        self.tensors.batch_of(x)?;
-        if contacts.points.dims() != x.dims() {
-            return Err(PhysicsError::ShapeMismatch {
-                what: "collision contacts".into(),
-                expected: format!("{:?}", x.dims()),
-                found: format!("{:?}", contacts.points.dims()),
-            });
-        }
-        let f = &self.fabric;
-        if !self.fused {
-            return Ok(Some(
-                collision::collision(
-                    x,
-                    contacts,
-                    &self.tensors,
-                    f.collision_stiffness,
-                    f.collision_threshold_m,
-                )
-                .mean(),
-            ));
-        }
-        let kernel = Kernel::Collision {
-            k: f64::from(f.collision_stiffness),
-            eps_m: f64::from(f.collision_threshold_m),
-        };
-        Ok(self
-            .fused_energies(x, &[(Term::Collision, kernel)], Some(contacts))?
-            .into_iter()
-            .next()
-            .map(|(_, e)| e.mean()))
-    }
-
     /// Inertia loss (batch mean) of `x_t` given the two previous frames (all three `[B, V, 3]`);
     /// gradients reach only `x_t`. None when dynamics is off.
     pub fn inertia(

@@ -194,14 +194,6 @@ pub struct TrainConfig {
     /// the full filter lifts it 4.8-5.6 mm, and loses most of the swing (run 3.8-4.7 mm of the
     /// simulator's 12.0; docs/TRAINING.md round 8).
     pub precondition_dynamic_only: bool,
-    /// The gradient filter (when `precondition_stiffness > 0`) leaves the gradient of the
-    /// contact terms plain: collision, friction and pinning. `K` has no contact stiffness, so
-    /// the filter spreads a contact's local push over the whole garment (at β = 1, 16-18 % of
-    /// the t-shirt's vertices went inside the body, docs/TRAINING.md round 7); with this on,
-    /// the cloth and inertia terms' filtered gradient approaches, as β grows towards 1, the
-    /// mass-weighted distance to one Newton step of the simulator, and the contacts keep
-    /// theirs. Default false (docs/TRAINING.md round 15).
-    pub precondition_plain_contacts: bool,
     /// Adam normalises each row of the decoder's bases (one latent direction's pattern over
     /// every vertex coordinate) by one second moment, the mean of the row's, instead of each
     /// value by its own ([`super::adam::FusedAdam::with_basis_row_norm`]): per-value Adam moves
@@ -247,7 +239,6 @@ impl Default for TrainConfig {
             precondition_moving_only: true,
             precondition_final_stiffness: None,
             precondition_dynamic_only: false,
-            precondition_plain_contacts: false,
             basis_row_norm: BasisRowNorm::Off,
         }
     }

@@ -231,64 +231,6 @@ fn fused_terms_match_the_burn_reference_on_random_sheets() {
     }
 }
 
-/// Issue 11 round 15: `collision_loss` alone (what the trainer takes on its own copy when the
-/// filter leaves the contacts plain) has the value and gradient of the collision term of the
-/// static losses, fused and reference; none without the collision effect.
-#[test]
-fn the_collision_loss_alone_is_the_static_losses_collision_term() {
-    let case = random_case(7);
-    let device = f64_device();
-    let n = case.rest.vertex_count();
-    let xf: Vec<f32> = case.x.iter().map(|v| *v as f32).collect();
-    let contacts = Contacts::query(&case.bodies, &xf, n, &device, DType::F64).unwrap();
-    let fused = PhysicsTerms::from_rest(
-        case.rest.clone(),
-        &FabricParams::default(),
-        &all_effects(),
-        &device,
-        DType::F64,
-    )
-    .unwrap();
-    let value_and_gradient = |loss: Tensor<1>, x: &Tensor<3>| {
-        let v = read_f64(loss.clone().detach()).unwrap()[0];
-        let g = read_f64(x.grad(&loss.backward()).unwrap()).unwrap();
-        (v, g)
-    };
-    for terms in [fused.clone(), fused.clone().with_fused(false)] {
-        let x = tensor(&case.x, case.batch, &device, DType::F64).require_grad();
-        let all = terms.static_losses_with(&x, Some(&contacts)).unwrap();
-        let (want, want_g) = value_and_gradient(all.get(Term::Collision).unwrap().clone(), &x);
-        let x = tensor(&case.x, case.batch, &device, DType::F64).require_grad();
-        let alone = terms.collision_loss(&x, &contacts).unwrap().unwrap();
-        let (got, got_g) = value_and_gradient(alone, &x);
-        assert!(want > 0.0, "vacuous: no collision energy");
-        assert!((got - want).abs() <= 1e-9 * want, "{got} vs {want}");
-        let scale = max_abs(&want_g);
-        for (a, b) in got_g.iter().zip(&want_g) {
-            assert!((a - b).abs() <= 1e-9 * scale, "{a} vs {b}");
-        }
-    }
-    let no_collision = PhysicsTerms::from_rest(
-        case.rest.clone(),
-        &FabricParams::default(),
-        &Effects {
-            collision: false,
-            friction: false,
-            ..all_effects()
-        },
-        &device,
-        DType::F64,
-    )
-    .unwrap();
-    let x = tensor(&case.x, case.batch, &device, DType::F64);
-    assert!(
-        no_collision
-            .collision_loss(&x, &contacts)
-            .unwrap()
-            .is_none()
-    );
-}
-
 #[test]
 fn fused_terms_match_the_burn_reference_on_builtin_garments() {
     let (avatar, shirt, skirt) = scene();

@@ -34,7 +34,7 @@ use step_losses::StepLosses;
 
 use super::TrainError;
 use super::adam::TrainOptimiser;
-use super::config::TrainConfig;
+use super::config::{InertiaMode, TrainConfig};
 use super::data::{Batch, Dataset};
 use super::filter::{FilterCache, filtered_surrogate};
 use super::handle::Session;
@@ -202,6 +202,51 @@ impl NeuralSession {
             losses.push(neural_cloth_physics::Term::Pinning, pinning);
         }
         Ok((contacts, losses))
+    }
+
+    /// With the dynamics effect: the inertia of the first `kept` samples of every loss frame
+    /// of `x` (`[B, K, V, 3]`) from the network's own two previous frames, plus the friction
+    /// dissipation of every loss frame `x_t` (stacked, [`stack_frames`]) with the friction
+    /// effect, in that order; and the friction contacts, for the step's metrics.
+    fn dynamic_losses(
+        &self,
+        x: &Tensor<4>,
+        x_t: &Tensor<3>,
+        batch: &Batch,
+        contacts: Option<&Contacts>,
+        kept: usize,
+    ) -> Result<(Vec<Tensor<1>>, Option<FrictionContacts>), TrainError> {
+        if !self.terms.effects().dynamics {
+            return Ok((Vec::new(), None));
+        }
+        let (b, predicted) = (batch.size, batch.predicted);
+        let (xt, xt1, xt2) = (
+            stack_frames(x, 2, predicted, kept),
+            stack_frames(x, 1, predicted - 1, kept),
+            stack_frames(x, 0, predicted - 2, kept),
+        );
+        let inertia = match self.config.inertia_mode {
+            InertiaMode::Ours => self.terms.inertia(&xt, &xt1, &xt2, self.dt_secs()),
+            InertiaMode::Snug => {
+                super::losses::inertia_through_past(&self.terms, &xt, &xt1, &xt2, self.dt_secs())
+            }
+        };
+        let friction = match (contacts, self.terms.friction_on()) {
+            (Some(c), true) => super::losses::friction_contacts(
+                &self.terms,
+                &self.train,
+                &self.avatar,
+                batch,
+                c,
+                kept,
+            )?,
+            _ => None,
+        };
+        let dissipation = friction.as_ref().and_then(|fc| {
+            let xt1 = stack_frames(x, 1, predicted - 1, b);
+            self.terms.friction(x_t, &xt1, fc)
+        });
+        Ok((inertia.into_iter().chain(dissipation).collect(), friction))
     }
 
     /// Metrics of a training step on its first few windows only ([`STEP_METRIC_WINDOWS`]):
