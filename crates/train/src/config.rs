@@ -499,37 +499,34 @@ mod tests {
     #[test]
     fn validation_names_the_field() {
         assert!(TrainConfig::default().validate(30.0).is_ok());
-        let e = TrainConfig {
-            window_secs: 0.0,
-            ..Default::default()
-        }
-        .validate(30.0)
-        .unwrap_err();
-        assert_eq!(e.field, "window_secs");
-        let e = TrainConfig {
-            batch_size: 0,
-            ..Default::default()
-        }
-        .validate(30.0)
-        .unwrap_err();
-        assert_eq!(e.field, "batch_size");
+        let refused = |config: TrainConfig| config.validate(30.0).unwrap_err().field;
+        assert_eq!(
+            refused(TrainConfig {
+                window_secs: 0.0,
+                ..Default::default()
+            }),
+            "window_secs"
+        );
+        assert_eq!(
+            refused(TrainConfig {
+                batch_size: 0,
+                ..Default::default()
+            }),
+            "batch_size"
+        );
         // Row-normalised bases need the fused Adam of the CPU backend.
-        let e = TrainConfig {
+        let wgpu = TrainConfig {
             basis_row_norm: BasisRowNorm::Dynamic,
             backend: BackendKind::Wgpu,
             ..Default::default()
-        }
-        .validate(30.0)
-        .unwrap_err();
-        assert_eq!(e.field, "basis_row_norm");
-        let e = TrainConfig {
+        };
+        assert_eq!(refused(wgpu), "basis_row_norm");
+        let unfused = TrainConfig {
             basis_row_norm: BasisRowNorm::Both,
             fused_adam: false,
             ..Default::default()
-        }
-        .validate(30.0)
-        .unwrap_err();
-        assert_eq!(e.field, "basis_row_norm");
+        };
+        assert_eq!(refused(unfused), "basis_row_norm");
         let cpu = TrainConfig {
             basis_row_norm: BasisRowNorm::Both,
             ..Default::default()
