@@ -4,6 +4,7 @@
 use std::fmt::Write as _;
 
 use neural_cloth_core::scene::config::Effects;
+use neural_cloth_train::TrainConfig;
 
 use super::report::effects_label;
 use super::suite::BenchReport;
@@ -34,6 +35,7 @@ fn find(r: &BenchReport, case: TrainCase) -> Option<&TrainBench> {
             && c.effects == case.effects
             && c.fused_physics == case.fused_physics
             && c.fused_adam == case.fused_adam
+            && c.window_secs == case.window_secs
     })
 }
 
@@ -209,6 +211,26 @@ pub fn training_gap(r: &BenchReport) -> String {
     for (batch, goal) in [(16, GOAL_16_MS), (32, GOAL_32_MS)] {
         if let Some(line) = goal_line(r, batch, goal) {
             let _ = writeln!(s, "{line}");
+        }
+    }
+    for batch in [16, 32] {
+        let case = TrainCase {
+            window_secs: TrainConfig::default().window_secs,
+            ..TrainCase::default_at(batch)
+        };
+        if let (Some(t), Some(half)) = (find(r, case), find(r, TrainCase::default_at(batch))) {
+            let floor = floor_ms(r, t).map_or(String::new(), |f| {
+                format!(", floor {f:.1} ms, step / floor {:.2}×", t.ms_per_step / f)
+            });
+            let _ = writeln!(
+                s,
+                "- **Today's default window ({} s), batch {batch}:** {:.1} ms per step, {:.2}× the \
+                 issue's {} s window{floor}.",
+                case.window_secs,
+                t.ms_per_step,
+                t.ms_per_step / half.ms_per_step,
+                half.window_secs
+            );
         }
     }
     let all = Effects::default();
