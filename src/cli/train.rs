@@ -159,6 +159,11 @@ pub struct TrainArgs {
     /// (default off; CPU backend only; see docs/TRAINING.md round 14)
     #[arg(long, value_enum)]
     pub basis_row_norm: Option<BasisRowNormArg>,
+    /// Checkpoints hold an exponential moving average of the weights with this decay, in
+    /// [0, 0.9999] (about the last 1 / (1 - decay) steps; default 0 = the last step's
+    /// weights; CPU backend only; see docs/TRAINING.md round 16)
+    #[arg(long, value_name = "DECAY")]
+    pub weight_average: Option<f32>,
     /// Final stiffness scale of the gradient filter: with --steps, β moves geometrically from
     /// --precondition to it over the run (default: constant)
     #[arg(long)]
@@ -392,6 +397,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(which) = args.basis_row_norm {
         train.basis_row_norm = which.into();
+    }
+    if let Some(decay) = args.weight_average {
+        train.weight_average = decay;
     }
     if let Some(b) = args.precondition_final {
         train.precondition_final_stiffness = Some(b);

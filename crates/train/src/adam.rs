@@ -93,6 +93,9 @@ struct Moments {
     shape: Vec<usize>,
     /// Path of the parameter in the module (kept in the record, as burn does).
     path: Option<String>,
+    /// Moving average of the parameter ([`FusedAdam::with_weight_average`]); not in the
+    /// record (a checkpoint holds the average as its weights).
+    average: Option<Vec<f32>>,
 }
 
 /// The moments of one parameter as read from a record, before both are checked present.
@@ -142,6 +145,8 @@ pub struct FusedAdam {
     /// Which decoder bases have each row normalised by one second moment
     /// ([`super::TrainConfig::basis_row_norm`]).
     basis_row_norm: BasisRowNorm,
+    /// Decay of the weights' moving average ([`super::TrainConfig::weight_average`]; 0: none).
+    average_decay: f32,
     states: HashMap<ParamId, Moments>,
 }
 
@@ -152,6 +157,7 @@ impl Default for FusedAdam {
             beta_2: BETA_2,
             epsilon: EPSILON,
             basis_row_norm: BasisRowNorm::Off,
+            average_decay: 0.0,
             states: HashMap::new(),
         }
     }
@@ -171,6 +177,23 @@ impl FusedAdam {
     pub fn with_basis_row_norm(mut self, which: BasisRowNorm) -> Self {
         self.basis_row_norm = which;
         self
+    }
+
+    /// The same optimiser, keeping beside each parameter its exponential moving average with
+    /// decay `decay` (0: none), `min(decay, (1 + t) / (10 + t))` at the parameter's step `t`
+    /// ([`super::TrainConfig::weight_average`]); [`FusedAdam::averaged`] reads it.
+    pub fn with_weight_average(mut self, decay: f32) -> Self {
+        self.average_decay = decay;
+        self
+    }
+
+    /// `module` with each parameter that has a moving average replaced by it (the others
+    /// as they are); `module` itself without an average.
+    pub fn averaged<M: Module>(&self, module: M) -> M {
+        if self.average_decay <= 0.0 {
+            return module;
+        }
+        module.map(&mut AverageMapper { adam: self })
     }
 
     /// Updates every parameter of `module` that has a gradient in `grads` with learning rate
@@ -263,6 +286,7 @@ impl FusedAdam {
             v: Arc::new(vec![0.0; n]),
             shape: shape.clone(),
             path: Some(path),
+            average: None,
         });
         moments.time += 1;
         moments.shape = shape;
@@ -275,6 +299,14 @@ impl FusedAdam {
         match row_len {
             Some(row_len) => update_rows(p, g, m, v, row_len, &k),
             None => update_all(p, g, m, v, &k),
+        }
+        if self.average_decay > 0.0 {
+            let t = moments.time as f32;
+            let decay = self.average_decay.min((1.0 + t) / (10.0 + t));
+            match &mut moments.average {
+                Some(a) if a.len() == p.len() => update_average(a, p, decay),
+                average => *average = Some(p.to_vec()),
+            }
         }
         Ok(Tensor::from_data(data, &device))
     }
@@ -382,6 +414,7 @@ impl FusedAdam {
                 v: Arc::new(v),
                 shape,
                 path,
+                average: None,
             };
             adam.states.insert(ParamId::from(id), state);
         }
@@ -446,6 +479,46 @@ impl ModuleMapper for StepMapper<'_> {
     }
 }
 
+/// `a ← d·a + (1 - d)·p` over the values, in parallel chunks.
+fn update_average(a: &mut [f32], p: &[f32], decay: f32) {
+    use rayon::prelude::*;
+    a.par_chunks_mut(CHUNK)
+        .zip(p.par_chunks(CHUNK))
+        .for_each(|(a, p)| {
+            for (a, &p) in a.iter_mut().zip(p) {
+                *a = decay * *a + (1.0 - decay) * p;
+            }
+        });
+}
+
+/// Replaces each float parameter that has a moving average by it ([`FusedAdam::averaged`]),
+/// keeping the parameter's id and settings.
+struct AverageMapper<'a> {
+    adam: &'a FusedAdam,
+}
+
+impl ModuleMapper for AverageMapper<'_> {
+    fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
+        let (id, tensor, mapper) = param.consume();
+        let Some(average) = self
+            .adam
+            .states
+            .get(&id)
+            .and_then(|s| s.average.as_ref())
+            .filter(|a| a.len() == tensor.shape().num_elements())
+        else {
+            return Param::from_mapped_value(id, tensor, mapper);
+        };
+        let require_grad = tensor.is_require_grad();
+        let data = TensorData::new(average.clone(), tensor.shape());
+        let mut averaged = Tensor::from_data(data, &tensor.device());
+        if require_grad {
+            averaged = averaged.require_grad();
+        }
+        Param::from_mapped_value(id, averaged, mapper)
+    }
+}
+
 /// Maps every float parameter to an empty tensor: the stand-in of [`FusedAdam::step`] (so the
 /// real parameters are owned by the step alone).
 struct Hollow;
@@ -482,8 +555,12 @@ impl TrainOptimiser {
     /// The optimiser `config` asks for: fused when [`TrainConfig::fused_adam`] is on and the
     /// backend is the CPU one (whose parameters live on the host), burn's otherwise.
     pub fn for_config(config: &TrainConfig) -> Self {
-        Self::new(config.fused_adam && config.backend == BackendKind::Cpu)
+        match Self::new(config.fused_adam && config.backend == BackendKind::Cpu)
             .with_basis_row_norm(config.basis_row_norm)
+        {
+            Self::Fused(adam) => Self::Fused(adam.with_weight_average(config.weight_average)),
+            burn => burn,
+        }
     }
 
     /// The same optimiser with [`FusedAdam::with_basis_row_norm`] set (burn's Adam has no
@@ -492,6 +569,15 @@ impl TrainOptimiser {
         match self {
             Self::Fused(adam) => Self::Fused(adam.with_basis_row_norm(which)),
             burn => burn,
+        }
+    }
+
+    /// `module` with its parameters replaced by their moving averages where the fused
+    /// optimiser keeps them ([`FusedAdam::averaged`]); `module` itself otherwise.
+    pub fn averaged<M: Module>(&self, module: M) -> M {
+        match self {
+            Self::Fused(adam) => adam.averaged(module),
+            Self::Burn(_) => module,
         }
     }
 
@@ -544,8 +630,13 @@ impl TrainOptimiser {
                 .from_bytes(bytes)
                 .map(Self::Burn)
                 .map_err(|e| AdamError::Record(e.to_string())),
-            Self::Fused(adam) => FusedAdam::from_bytes(bytes)
-                .map(|loaded| Self::Fused(loaded.with_basis_row_norm(adam.basis_row_norm))),
+            Self::Fused(adam) => FusedAdam::from_bytes(bytes).map(|loaded| {
+                Self::Fused(
+                    loaded
+                        .with_basis_row_norm(adam.basis_row_norm)
+                        .with_weight_average(adam.average_decay),
+                )
+            }),
         }
     }
 }

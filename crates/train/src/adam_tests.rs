@@ -365,3 +365,37 @@ fn the_networks_two_bases_are_the_ones_normalised_by_rows() {
         }
     }
 }
+
+#[test]
+fn the_weight_average_follows_its_formula_and_leaves_training_alone() {
+    let d = device();
+    let start = small(&d);
+    let decay = 0.5;
+    let mut plain = TrainOptimiser::new(true);
+    let mut averaging = TrainOptimiser::Fused(FusedAdam::new().with_weight_average(decay));
+    let (mut plain_model, mut model) = (start.clone(), start.clone());
+    let mut expected: Option<Vec<f32>> = None;
+    for k in 0..4 {
+        fused_step(&mut plain, &mut plain_model, k, &d);
+        fused_step(&mut averaging, &mut model, k, &d);
+        // The average does not change the optimiser's own path.
+        assert_eq!(values(&model), values(&plain_model), "step {k}");
+        let t = (k + 1) as f32;
+        let d_t = decay.min((1.0 + t) / (10.0 + t));
+        let now = values(&model);
+        expected = Some(match expected {
+            None => now,
+            Some(a) => a
+                .iter()
+                .zip(&now)
+                .map(|(a, p)| d_t * a + (1.0 - d_t) * p)
+                .collect(),
+        });
+    }
+    let averaged = values(&averaging.averaged(model.clone()));
+    let expected = expected.unwrap();
+    assert_close(&averaged, &expected, "averaged weights");
+    assert_ne!(averaged, values(&model), "the average is not the last step");
+    // Without an average (the default) the module comes back as it is.
+    assert_eq!(values(&plain.averaged(model.clone())), values(&model));
+}

@@ -202,6 +202,16 @@ pub struct TrainConfig {
     /// one moment per row the row moves along the gradient's own shape. Needs the fused Adam
     /// (the CPU backend). Default `off`.
     pub basis_row_norm: BasisRowNorm,
+    /// Decay of an exponential moving average of the weights kept beside them, in [0, 0.9999]
+    /// (0, the default: none). With a decay `d` the checkpoints (and so every bake, compare
+    /// and export of the run) hold the average over about the last `1 / (1 - d)` steps
+    /// instead of the last step's weights, which averages out the noise of the optimiser's
+    /// steps; training itself, its validation and the app's preview go on with the
+    /// optimiser's own weights. Early on the decay is `min(d, (1 + t) / (10 + t))` at step
+    /// `t` (the average starts from the first weights). A run resumed or rolled back goes on
+    /// from the checkpoint's (averaged) weights. Needs the fused Adam (the CPU backend).
+    /// docs/TRAINING.md round 16.
+    pub weight_average: f32,
 }
 
 impl Default for TrainConfig {
@@ -240,6 +250,7 @@ impl Default for TrainConfig {
             precondition_final_stiffness: None,
             precondition_dynamic_only: false,
             basis_row_norm: BasisRowNorm::Off,
+            weight_average: 0.0,
         }
     }
 }
@@ -412,6 +423,18 @@ impl TrainConfig {
             format!("{:?}", self.basis_row_norm),
             "false unless the fused Adam of the CPU backend trains",
         )?;
+        check(
+            (0.0..=0.9999).contains(&self.weight_average),
+            "weight_average",
+            self.weight_average,
+            "[0, 0.9999]",
+        )?;
+        check(
+            self.weight_average == 0.0 || (self.fused_adam && self.backend == BackendKind::Cpu),
+            "weight_average",
+            self.weight_average,
+            "0 unless the fused Adam of the CPU backend trains",
+        )?;
         if let Some(m) = self.max_minutes {
             check(m.is_finite() && m > 0.0, "max_minutes", m, "> 0")?;
         }
@@ -532,6 +555,25 @@ mod tests {
             ..Default::default()
         };
         assert!(cpu.validate(30.0).is_ok());
+        // The weight average: a decay below 1, with the fused Adam only.
+        for decay in [-0.1, 1.0] {
+            let bad = TrainConfig {
+                weight_average: decay,
+                ..Default::default()
+            };
+            assert_eq!(refused(bad), "weight_average");
+        }
+        let unfused = TrainConfig {
+            weight_average: 0.99,
+            fused_adam: false,
+            ..Default::default()
+        };
+        assert_eq!(refused(unfused), "weight_average");
+        let averaged = TrainConfig {
+            weight_average: 0.99,
+            ..Default::default()
+        };
+        assert!(averaged.validate(30.0).is_ok());
         // The rate is the scene's: checked against the trainer's range by its own name.
         let e = TrainConfig::default().validate(2.0).unwrap_err();
         assert_eq!(e.field, "training_fps");

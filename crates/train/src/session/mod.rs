@@ -533,7 +533,9 @@ impl Session for NeuralSession {
             step,
             learning_rate: self.learning_rate,
         };
-        let model = self.model.clone();
+        // With a weight average on, the checkpoint holds the average (what bakes and
+        // compares read); training goes on with the optimiser's own weights.
+        let model = self.optim.averaged(self.model.clone());
         let optim = &self.optim;
         self.run.write_checkpoint_from(
             state,
