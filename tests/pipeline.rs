@@ -1400,6 +1400,8 @@ fn warm_start_puts_the_effective_bias_at_the_drape_whatever_its_learning_rate_sc
         .collect();
     for scale in [1.0, 1.0 / 16.0] {
         let device = burn::tensor::Device::flex();
+        // Random weights drawn here would take numbers from a run prepared beside this test.
+        let rng = neural_cloth::train::device_rng_lock();
         let mut net = ClothNetConfig {
             basis_bias_lr_scale: scale,
             ..small_model()
@@ -1410,6 +1412,7 @@ fn warm_start_puts_the_effective_bias_at_the_drape_whatever_its_learning_rate_sc
             &device,
         )
         .unwrap();
+        drop(rng);
         neural_cloth::train::warm_start::set_basis_bias_to_drape(
             &mut net, garment, &drape, &device,
         )

@@ -49,9 +49,19 @@ use neural_cloth_model::{ClothNetConfig, DescriptorConfig, EncoderKind, GarmentL
 use neural_cloth_physics::{Effects, FabricParams, PhysicsTerms};
 
 use data::Dataset;
+
 use handle::LoopConfig;
 use run_dir::{avatar_fingerprint, garment_fingerprint, garment_skin_fingerprint};
 use session::{NeuralSession, SessionParts};
+
+/// Held while the process's device random generator is seeded and drawn from (a run's
+/// initial weights, revived units), so that the draws of one run are not interleaved with
+/// another's on another thread. Poisoning is ignored: the guard protects no data.
+pub fn device_rng_lock() -> std::sync::MutexGuard<'static, ()> {
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    LOCK.lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
 
 /// Errors of the train layer.
 #[derive(Debug, thiserror::Error)]
@@ -264,7 +274,6 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
             data::dynamic_scale_of(&scene.avatar, &scene.motions, fps, &descriptors)?;
     }
     let device = device_for(train.backend, true);
-    device.seed(train.seed);
     let avatar = Arc::new(scene.avatar);
     let garment = Arc::new(scene.garment);
     let (train_data, validation) = datasets(&avatar, &scene.motions, &train, fps, &descriptors)?;
@@ -281,7 +290,14 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         refuse_misfit(&avatar, &garment, &scene_config)?;
     }
     warnings.extend(preflight::preflight_warnings(&avatar, &garment, &fabric));
-    let mut net = model.init(train_data.input_joints, garment.vertex_count(), &device)?;
+    let mut net = {
+        // The device's random generator is the process's: seeding it and drawing the initial
+        // weights form one step, so that runs prepared at the same time on other threads
+        // (tests, the app beside a command) neither change nor take this run's weights.
+        let _rng = device_rng_lock();
+        device.seed(train.seed);
+        model.init(train_data.input_joints, garment.vertex_count(), &device)?
+    };
     if !has_checkpoint && train.predrape_secs > 0.0 && model.basis_bias {
         let drape = warm_start::simulated_drape(
             &avatar,

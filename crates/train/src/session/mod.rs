@@ -504,6 +504,7 @@ impl Session for NeuralSession {
         let flat = statics.clone().detach().reshape([b * t, j * c]);
         let z = self.model.latent_code(statics, dynamics, 1.0).detach();
         let latent = z.dims()[2];
+        let _rng = crate::device_rng_lock();
         let revived = revive_dead_units(
             &mut self.model,
             flat,
