@@ -209,8 +209,9 @@ pub struct TrainConfig {
     /// steps; training itself, its validation and the app's preview go on with the
     /// optimiser's own weights. Early on the decay is `min(d, (1 + t) / (10 + t))` at step
     /// `t` (the average starts from the first weights). A run resumed or rolled back goes on
-    /// from the checkpoint's (averaged) weights. Needs the fused Adam (the CPU backend).
-    /// docs/TRAINING.md round 16.
+    /// from the checkpoint's (averaged) weights; the best checkpoint is chosen by the
+    /// optimiser's own weights' validation. Needs the fused Adam (the CPU backend). Measured
+    /// in docs/TRAINING.md round 16: not better than the last step's weights.
     pub weight_average: f32,
 }
 
