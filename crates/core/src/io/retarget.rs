@@ -196,6 +196,12 @@ pub fn retarget(
             skeleton.names[hips_a]
         ));
     }
+    if let Some(clearance) = root.clearance_b {
+        warnings.push(format!(
+            "the motion's feet never come down to its floor (y = 0; lowest {clearance:.3} file \
+             units above it): kept at their height above the avatar's floor, not grounded"
+        ));
+    }
     let mut frames = retarget_frames(source, skeleton, map, &rest_rot, &root);
     root.ground(skeleton, &mut frames);
     let scene_err = |e| IoError::Scene {
@@ -455,7 +461,7 @@ mod tests {
     use crate::io::Units;
     use std::path::Path;
 
-    const BVH: &str = "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation\n JOINT Spine\n {\n  OFFSET 0 2 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 2 0\n  }\n }\n JOINT LeftUpLeg\n {\n  OFFSET 1 0 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n  JOINT LeftLeg\n  {\n   OFFSET 0 -4 0\n   CHANNELS 3 Zrotation Xrotation Yrotation\n   End Site\n   {\n    OFFSET 0 -4 0\n   }\n  }\n }\n}\nMOTION\nFrames: 3\nFrame Time: 0.5\n0 8 0 0 0 0 0 0 0 0 0 0 0 0 0\n1 7 2 10 20 30 -5 15 0 40 0 -10 0 60 5\n2 8 4 0 90 0 0 0 0 0 0 0 0 0 0\n";
+    const BVH: &str = "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation\n JOINT Spine\n {\n  OFFSET 0 2 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 2 0\n  }\n }\n JOINT LeftUpLeg\n {\n  OFFSET 1 0 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n  JOINT LeftLeg\n  {\n   OFFSET 0 -4 0\n   CHANNELS 3 Zrotation Xrotation Yrotation\n   End Site\n   {\n    OFFSET 0 -4 0\n   }\n  }\n }\n}\nMOTION\nFrames: 3\nFrame Time: 0.5\n0 4 0 0 0 0 0 0 0 0 0 0 0 0 0\n1 3 2 10 20 30 -5 15 0 40 0 -10 0 60 5\n2 4 4 0 90 0 0 0 0 0 0 0 0 0 0\n";
 
     #[test]
     fn retargeting_onto_own_skeleton_reproduces_the_motion() {
@@ -486,6 +492,56 @@ mod tests {
                 assert!(motion.frames[f].rotations[j].angle_to(&bvh.local(f, j).1) < 1e-4);
             }
             assert!(((p[0] - first_a) - (w[0].1 - first) * 0.01).norm() < 1e-5);
+        }
+    }
+
+    /// The lowest end joint's height of every frame of `motion` on `sk`, metres.
+    fn lowest_ends(sk: &Skeleton, motion: &Motion) -> Vec<f32> {
+        let ends = end_joints(&sk.parents);
+        motion
+            .frames
+            .iter()
+            .map(|pose| lowest_end(&sk.joint_positions(pose), &ends))
+            .collect()
+    }
+
+    #[test]
+    fn a_motion_that_never_reaches_its_floor_is_not_grounded() {
+        // The same clip with the hips 26 cm higher: its lowest end joint never comes within
+        // a quarter of the leg (4 cm) of its floor.
+        let lifted = BVH
+            .replace("0 4 0 0 0 0", "0 30 0 0 0 0")
+            .replace("1 3 2 10", "1 29 2 10")
+            .replace("2 4 4 0 90", "2 30 4 0 90");
+        let opts = RetargetOptions {
+            fps: 2.0,
+            recentre: false,
+            ..Default::default()
+        };
+        let bvh = Bvh::parse(BVH.as_bytes(), Path::new("m.bvh")).unwrap();
+        let (sk, _) = bvh.to_skeleton(Units::Centimetres).unwrap();
+        let ground_a = lowest_end(
+            &sk.joint_positions(&sk.rest_pose()),
+            &end_joints(&sk.parents),
+        );
+        let (standing, warnings) = retarget_bvh(&bvh, &sk, &opts).unwrap();
+        assert!(warnings.is_empty(), "{warnings:?}");
+        let lowest = lowest_ends(&sk, &standing);
+        let min = lowest.iter().copied().fold(f32::INFINITY, f32::min);
+        assert!((min - ground_a).abs() < 1e-5, "{min} vs {ground_a}");
+        let bvh = Bvh::parse(lifted.as_bytes(), Path::new("lifted.bvh")).unwrap();
+        let (airborne, warnings) = retarget_bvh(&bvh, &sk, &opts).unwrap();
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(warnings[0].contains("never come down to its floor"));
+        let ends = end_joints(&bvh.joints.iter().map(|j| j.parent).collect::<Vec<_>>());
+        for (f, lowest) in lowest_ends(&sk, &airborne).iter().enumerate() {
+            let points: Vec<Vec3> = bvh.world(f).iter().map(|w| w.1).collect();
+            let source = 0.01 * lowest_end(&points, &ends);
+            assert!(source > 0.2);
+            assert!(
+                (lowest - ground_a - source).abs() < 1e-5,
+                "frame {f}: {lowest} above {ground_a}, source {source}"
+            );
         }
     }
 

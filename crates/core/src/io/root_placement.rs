@@ -32,6 +32,12 @@ pub(super) fn lowest_end(points: &[Vec3], ends: &[bool]) -> f32 {
     if y.is_finite() { y } else { lowest(true) }
 }
 
+/// A motion whose end joints (feet, toes) stay higher than this share of its rig's leg
+/// (hip height above the lowest end joint in rest) above its file's floor never stands on it:
+/// a jump, a climb, a character seated on a high stool. Standing rigs' lowest end joints
+/// (toes, ankles) sit within about a tenth of the leg of the floor.
+pub(super) const AIRBORNE_SHARE_OF_LEG: f32 = 0.25;
+
 /// Where the avatar's hips go in each frame.
 pub(super) struct RootPlacement {
     hips_a: usize,
@@ -39,6 +45,11 @@ pub(super) struct RootPlacement {
     scale: f32,
     ground_a: f32,
     ground_b: f32,
+    /// The lowest height of the motion's end joints above its file's floor (y = 0), file
+    /// units, when the motion never comes down to it (more than [`AIRBORNE_SHARE_OF_LEG`] of
+    /// the rig's leg): the motion then keeps its height above the floor, and
+    /// [`Self::ground`] leaves it there.
+    pub(super) clearance_b: Option<f32>,
     offset: Vec3,
     pub(super) under_root0: Option<usize>,
     root_linear_inv: Option<crate::geometry::Mat3>,
@@ -55,13 +66,20 @@ impl RootPlacement {
         options: &RetargetOptions,
     ) -> Self {
         // Ground = lowest end joint over the whole motion (a root joint at the floor under
-        // the hips is no foot).
+        // the hips is no foot); a motion whose feet stay well above its file's floor (y = 0)
+        // keeps that floor and its height above it.
         let ends_b = end_joints(&source.parents);
-        let ground_b = source
+        let lowest_b = source
             .frames
             .iter()
             .map(|w| lowest_end(&w.iter().map(|x| x.1).collect::<Vec<_>>(), &ends_b))
             .fold(f32::INFINITY, f32::min);
+        let rest_b: Vec<Vec3> = source.rest.iter().map(|r| r.1).collect();
+        let leg_b = rest_b.get(hips_b).map_or(0.0, |p| p.y) - lowest_end(&rest_b, &ends_b);
+        let clearance_b = (leg_b > 0.0 && lowest_b.is_finite())
+            .then_some(lowest_b)
+            .filter(|y| *y > AIRBORNE_SHARE_OF_LEG * leg_b);
+        let ground_b = if clearance_b.is_some() { 0.0 } else { lowest_b };
         let ground_a = lowest_end(rest_pos, &end_joints(&skeleton.parents));
         let start_b = source
             .frames
@@ -91,6 +109,7 @@ impl RootPlacement {
             scale,
             ground_a,
             ground_b,
+            clearance_b,
             offset,
             under_root0,
             root_linear_inv: skeleton.world_from_root_parent[0]
@@ -124,8 +143,11 @@ impl RootPlacement {
     /// the whole motion is at its rest ground: the motion's own ground, scaled by hip
     /// heights, leaves the feet above or below the floor when the rigs' legs differ (a CMU
     /// rest pose's legs are splayed, its hips joint sits high above the thighs).
+    /// A motion that never comes down to its own floor ([`Self::clearance_b`]) is left as
+    /// placed.
     pub(super) fn ground(&self, skeleton: &Skeleton, frames: &mut [Pose]) {
-        let (Some(_), Some(inv)) = (self.under_root0, self.root_linear_inv) else {
+        let (Some(_), Some(inv), None) = (self.under_root0, self.root_linear_inv, self.clearance_b)
+        else {
             return;
         };
         let ends = end_joints(&skeleton.parents);
