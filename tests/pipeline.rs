@@ -797,7 +797,7 @@ fn pinning_and_every_other_effect_act_in_training() {
 /// pinned skirt with every effect on, finite, and changes what a step optimises.
 #[test]
 fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
-    let losses = |loss_frames: usize| {
+    let losses = |loss_frames: usize, history_propagation: f64| {
         let dir = tempfile::tempdir().unwrap();
         let (scene, scene_config) = tiny_skirt(|_| {});
         let (mut session, _) = prepare(TrainSetup {
@@ -807,6 +807,7 @@ fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
             // result depends on thread timing in a full test run.
             train: TrainConfig {
                 loss_frames,
+                history_propagation,
                 predrape_secs: 0.0,
                 ..quick_config()
             },
@@ -824,10 +825,10 @@ fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
         }
         let after = session.validate().unwrap();
         assert!(after.is_finite(), "{after:?}");
-        (before.loss, steps)
+        (before.loss, steps, after.loss)
     };
-    let (before_one, one) = losses(1);
-    let (before_three, three) = losses(3);
+    let (before_one, one, _) = losses(1, 0.0);
+    let (before_three, three, after_three) = losses(3, 0.0);
     // Validation reads the last frame only, so the untrained model scores the same.
     let relative = |a: f64, b: f64| (a - b).abs() / a.abs().max(b.abs()).max(1e-12);
     assert!(
@@ -839,6 +840,14 @@ fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
         "three loss frames gave the first step's loss of one: {} against {}",
         three[0],
         one[0]
+    );
+    // The history propagation (round 17) changes the update, not the losses it starts from.
+    let (before_carried, carried, after_carried) = losses(3, 1.0);
+    assert_eq!(before_carried, before_three);
+    assert_eq!(carried[0], three[0]);
+    assert!(
+        relative(after_carried, after_three) > 1e-9,
+        "the history propagation left training unchanged: {after_carried} against {after_three}"
     );
     // A window too short for its loss frames is refused.
     let too_many = TrainConfig {

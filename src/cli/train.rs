@@ -164,6 +164,12 @@ pub struct TrainArgs {
     /// weights; CPU backend only; see docs/TRAINING.md round 16)
     #[arg(long, value_name = "DECAY")]
     pub weight_average: Option<f32>,
+    /// Carry each moving window's filtered gradient forward in time over its loss frames,
+    /// with this stiffness scale β' for the propagation's filter D (D + β'K)⁻¹, in [0, 100]
+    /// (default 0 = off; needs --loss-frames above 1 to act; experimental: with 12 loss
+    /// frames it shreds the t-shirt; see docs/TRAINING.md round 17)
+    #[arg(long, value_name = "BETA")]
+    pub propagate_history: Option<f64>,
     /// Final stiffness scale of the gradient filter: with --steps, β moves geometrically from
     /// --precondition to it over the run (default: constant)
     #[arg(long)]
@@ -400,6 +406,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(decay) = args.weight_average {
         train.weight_average = decay;
+    }
+    if let Some(beta) = args.propagate_history {
+        train.history_propagation = beta;
     }
     if let Some(b) = args.precondition_final {
         train.precondition_final_stiffness = Some(b);

@@ -213,6 +213,20 @@ pub struct TrainConfig {
     /// optimiser's own weights' validation. Needs the fused Adam (the CPU backend). Measured
     /// in docs/TRAINING.md round 16: not better than the last step's weights.
     pub weight_average: f32,
+    /// Stiffness scale β' of the history propagation, in [0, 100] (0, the default: off).
+    /// With it, the (filtered) gradient of each moving window's loss frames is carried
+    /// forward in time, `G_k = g_k + P (2 G_{k-1} - G_{k-2})` with `P = D (D + β'K)⁻¹`, the
+    /// linearised effect of moving frame `k - 1` and `k - 2` on frame `k`'s own physics step:
+    /// a correction of an early loss frame moves the later ones with it (the soft modes
+    /// ballistically, the stiff ones damped by `P`), so a window's frames are corrected
+    /// together instead of one frame per refit. The fixed point is unchanged (all `G = 0`
+    /// exactly where every `g = 0`). Needs the gradient filter on
+    /// (`precondition_stiffness > 0`) and acts only with more than one loss frame
+    /// (`loss_frames`). Measured in docs/TRAINING.md round 17 (t-shirt, seed 43, 1100 steps):
+    /// with 6 loss frames and β' = 1 the swing grows but the distance to the simulator is
+    /// unchanged; with 12 the carried gradient (up to 78 times a constant residual) shreds
+    /// the garment. Experimental; keep the loss frames few.
+    pub history_propagation: f64,
 }
 
 impl Default for TrainConfig {
@@ -252,6 +266,7 @@ impl Default for TrainConfig {
             precondition_dynamic_only: false,
             basis_row_norm: BasisRowNorm::Off,
             weight_average: 0.0,
+            history_propagation: 0.0,
         }
     }
 }
@@ -436,6 +451,18 @@ impl TrainConfig {
             self.weight_average,
             "0 unless the fused Adam of the CPU backend trains",
         )?;
+        check(
+            (0.0..=100.0).contains(&self.history_propagation),
+            "history_propagation",
+            self.history_propagation,
+            "[0, 100]",
+        )?;
+        check(
+            self.history_propagation == 0.0 || self.precondition_stiffness > 0.0,
+            "history_propagation",
+            self.history_propagation,
+            "0 unless the gradient filter is on (precondition_stiffness > 0)",
+        )?;
         if let Some(m) = self.max_minutes {
             check(m.is_finite() && m > 0.0, "max_minutes", m, "> 0")?;
         }
@@ -575,6 +602,25 @@ mod tests {
             ..Default::default()
         };
         assert!(averaged.validate(30.0).is_ok());
+        // The history propagation: in [0, 100], with the gradient filter only.
+        for beta in [-1.0, 101.0] {
+            let bad = TrainConfig {
+                history_propagation: beta,
+                ..Default::default()
+            };
+            assert_eq!(refused(bad), "history_propagation");
+        }
+        let unfiltered = TrainConfig {
+            history_propagation: 1.0,
+            precondition_stiffness: 0.0,
+            ..Default::default()
+        };
+        assert_eq!(refused(unfiltered), "history_propagation");
+        let propagated = TrainConfig {
+            history_propagation: 1.0,
+            ..Default::default()
+        };
+        assert!(propagated.validate(30.0).is_ok());
         // The rate is the scene's: checked against the trainer's range by its own name.
         let e = TrainConfig::default().validate(2.0).unwrap_err();
         assert_eq!(e.field, "training_fps");

@@ -15,6 +15,8 @@ use super::config::TrainConfig;
 #[derive(Default)]
 pub struct FilterCache {
     filter: Option<Arc<GradientFilter>>,
+    /// The history propagation's `D (D + β'K)⁻¹` ([`TrainConfig::history_propagation`]).
+    propagation: Option<Arc<GradientFilter>>,
     /// Steps taken (restored with a checkpoint), for the schedule.
     steps_taken: u64,
 }
@@ -46,6 +48,28 @@ impl FilterCache {
         Ok(self.filter.clone())
     }
 
+    /// The history propagation's filter, `None` when the settings ask for none.
+    pub fn propagation(
+        &mut self,
+        config: &TrainConfig,
+        terms: &PhysicsTerms,
+        dt_secs: f32,
+    ) -> Result<Option<Arc<GradientFilter>>, TrainError> {
+        let beta = config.history_propagation;
+        if beta <= 0.0 {
+            return Ok(None);
+        }
+        if self.propagation.is_none() {
+            self.propagation = Some(Arc::new(GradientFilter::new(
+                terms.rest(),
+                terms.fabric(),
+                dt_secs,
+                beta,
+            )?));
+        }
+        Ok(self.propagation.clone())
+    }
+
     /// Counts a step whose update was made.
     pub fn count_step(&mut self) {
         self.steps_taken += 1;
@@ -59,6 +83,7 @@ impl FilterCache {
     /// Forgets the filter (the fabric changed); the next step rebuilds it.
     pub fn reset(&mut self) {
         self.filter = None;
+        self.propagation = None;
     }
 }
 
@@ -80,7 +105,9 @@ pub fn precondition_schedule(config: &TrainConfig, step: u64) -> f64 {
 /// respect to the network's output `x_net` is the filtered physics gradient (the first
 /// `plain_rows` rows of `[B·K, V, 3]` keep the plain one), plus, when given, the plain
 /// gradient of a second loss `plain` taken on its own detached copy `x_plain`. `x` is the
-/// detached leaf copy of `x_net` that `total` was computed from.
+/// detached leaf copy of `x_net` that `total` was computed from. With `propagation`, the
+/// summed gradient is then carried forward in time over the samples it names
+/// ([`propagate_history`]).
 pub fn filtered_surrogate(
     filter: &GradientFilter,
     x_net: &Tensor<4>,
@@ -88,6 +115,7 @@ pub fn filtered_surrogate(
     total: Tensor<1>,
     plain_rows: usize,
     plain: Option<(Tensor<4>, Tensor<1>)>,
+    propagation: Option<(&GradientFilter, std::ops::Range<usize>)>,
 ) -> Result<Tensor<1>, TrainError> {
     let dims = x.dims();
     let gradient_of = |leaf: &Tensor<4>, loss: Tensor<1>| -> Result<Vec<f32>, TrainError> {
@@ -106,13 +134,132 @@ pub fn filtered_surrogate(
             *a += b;
         }
     }
+    if let Some((propagation, samples)) = propagation {
+        propagate_history(propagation, &mut g, dims[1], samples)?;
+    }
     let g = Tensor::<4>::from_data(TensorData::new(g, dims), &x_net.device());
     Ok((x_net.clone() * g).sum())
+}
+
+/// Carries the gradient `g` (`[B·K, V, 3]`, sample-major, `K = frames`) forward in time
+/// within each sample of `samples`: `G_k = g_k + P (2 G_{k-1} - G_{k-2})` for `k` in `2..K`,
+/// `P` the `propagation` filter ([`TrainConfig::history_propagation`]). Frame `k`'s physics
+/// step starts from frames `k - 1` and `k - 2` (the inertia's `2x_{k-1} - x_{k-2}`), so a
+/// correction of those frames moves frame `k`'s one-step answer by `P` times the same
+/// combination of corrections: the recurrence is the linearised forward substitution of a
+/// window's frames. Samples outside `samples` are left as they are.
+pub fn propagate_history(
+    propagation: &GradientFilter,
+    g: &mut [f32],
+    frames: usize,
+    samples: std::ops::Range<usize>,
+) -> Result<(), TrainError> {
+    use rayon::prelude::*;
+    let row = propagation.vertex_count() * 3;
+    let block = frames * row;
+    if row == 0 || frames == 0 || !g.len().is_multiple_of(block) {
+        return Err(PhysicsError::ShapeMismatch {
+            what: "gradient to propagate".into(),
+            expected: format!("whole samples of {frames} frames of {row} values"),
+            found: format!("{} values", g.len()),
+        }
+        .into());
+    }
+    let end = samples.end.min(g.len() / block);
+    let start = samples.start.min(end);
+    g[start * block..end * block]
+        .par_chunks_mut(block)
+        .try_for_each(|sample| -> Result<(), PhysicsError> {
+            for k in 2..frames {
+                let (before, after) = sample.split_at_mut(k * row);
+                let mut carry: Vec<f32> = before[(k - 1) * row..]
+                    .iter()
+                    .zip(&before[(k - 2) * row..(k - 1) * row])
+                    .map(|(g1, g2)| 2.0 * g1 - g2)
+                    .collect();
+                propagation.apply(&mut carry)?;
+                for (out, c) in after[..row].iter_mut().zip(&carry) {
+                    *out += c;
+                }
+            }
+            Ok(())
+        })?;
+    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use neural_cloth_core::geometry::{Topology, Vec3};
+    use neural_cloth_physics::{FabricParams, GarmentRest, shapes::sheet};
+
+    /// The propagation's filter at β' = 1 on a 12 x 12 sheet, and the sheet's `m / Δt²`.
+    fn propagation() -> (GradientFilter, Vec<f32>) {
+        let mesh = sheet(12, 12, Vec3::zeros(), Vec3::x() * 0.4, Vec3::z() * 0.4);
+        let fabric = FabricParams::default();
+        let rest = GarmentRest::new(
+            &mesh,
+            &Topology::new(&mesh),
+            &[],
+            &[],
+            fabric.density_kg_per_m2,
+        )
+        .unwrap();
+        let dt = 1.0 / 30.0;
+        let inertial = rest
+            .mass_kg
+            .iter()
+            .map(|m| (m / f64::from(dt * dt)) as f32)
+            .collect();
+        (
+            GradientFilter::new(&rest, &fabric, dt, 1.0).unwrap(),
+            inertial,
+        )
+    }
+
+    #[test]
+    fn a_translation_propagates_ballistically_and_a_stiff_mode_is_damped() {
+        let (p, inertial) = propagation();
+        let (frames, row) = (6, p.vertex_count() * 3);
+        // Sample 0 is left out; sample 1's frame 2 holds a gradient along a translation
+        // (proportional to the masses: a mode the membrane does not resist).
+        let mut g: Vec<f32> = (0..2 * frames * row)
+            .map(|i| ((i * 31) % 17) as f32 - 8.0)
+            .collect();
+        let sample0 = g[..frames * row].to_vec();
+        let translation: Vec<f32> = inertial.iter().flat_map(|d| [0.0, -d, 0.5 * d]).collect();
+        let second = &mut g[frames * row..];
+        second.fill(0.0);
+        second[2 * row..3 * row].copy_from_slice(&translation);
+        propagate_history(&p, &mut g, frames, 1..2).unwrap();
+        assert_eq!(g[..frames * row], sample0[..]);
+        // Moving frame 2 by a translation moves frame k's step start by (k - 2) + 1 times it.
+        let second = &g[frames * row..];
+        for k in 0..frames {
+            let factor = k.saturating_sub(1) as f32;
+            for (a, b) in second[k * row..(k + 1) * row].iter().zip(&translation) {
+                assert!(
+                    (a - factor * b).abs() <= 1e-3 * b.abs() + 1e-9,
+                    "frame {k}: {a} vs {}",
+                    factor * b
+                );
+            }
+        }
+        // The roughest mode barely carries: frame 3 holds far less than twice frame 2.
+        let rough: Vec<f32> = (0..row / 3)
+            .flat_map(|i| [if i % 2 == 0 { 1.0 } else { -1.0 }, 0.0, 0.0])
+            .collect();
+        let mut g = vec![0.0f32; frames * row];
+        g[2 * row..3 * row].copy_from_slice(&rough);
+        propagate_history(&p, &mut g, frames, 0..1).unwrap();
+        let norm = |v: &[f32]| v.iter().map(|x| x * x).sum::<f32>().sqrt();
+        assert!(norm(&g[3 * row..4 * row]) < 0.4 * norm(&rough));
+        // A zero gradient stays zero; a gradient of broken samples is refused.
+        let mut zero = vec![0.0f32; frames * row];
+        propagate_history(&p, &mut zero, frames, 0..1).unwrap();
+        assert!(zero.iter().all(|x| *x == 0.0));
+        assert!(propagate_history(&p, &mut [0.0; 7], frames, 0..1).is_err());
+    }
 
     #[test]
     fn the_schedule_is_constant_without_an_end_and_geometric_with_one() {

@@ -417,7 +417,17 @@ impl Session for NeuralSession {
                 } else {
                     0
                 };
-                filtered_surrogate(&filter, &x_net, &x, total, plain_rows, plain)?.backward()
+                // The history propagation acts on the moving windows with dynamics: after
+                // the still ones, before the augmented (quasi-static) ones.
+                let propagation =
+                    self.filter
+                        .propagation(&self.config, &self.terms, self.dt_secs())?;
+                let propagation = match (&propagation, self.terms.effects().dynamics) {
+                    (Some(p), true) => Some((p.as_ref(), still..b - augment)),
+                    _ => None,
+                };
+                filtered_surrogate(&filter, &x_net, &x, total, plain_rows, plain, propagation)?
+                    .backward()
             }
         };
         let grads = GradientsParams::from_grads(grads, &self.model);
