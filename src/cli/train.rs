@@ -13,8 +13,8 @@ use neural_cloth::scene::config::SceneConfig;
 use neural_cloth::train::retention::{MAX_KEEP_NEWEST, Retention};
 
 use neural_cloth::train::{
-    BackendKind, BasisRowNorm, RunDir, RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer,
-    resume,
+    BackendKind, BasisRowNorm, InertiaMode, RunDir, RunLocation, TrainConfig, TrainEvent,
+    TrainSetup, Trainer, resume,
 };
 
 /// Arguments of `train`.
@@ -170,6 +170,11 @@ pub struct TrainArgs {
     /// frames it shreds the t-shirt; see docs/TRAINING.md round 17)
     #[arg(long, value_name = "BETA")]
     pub propagate_history: Option<f64>,
+    /// How the inertia term treats the network's two previous frames: `ours` (default: held
+    /// constant, the paper's) or `snug` (gradients flow into them too, SNUG's; the paper's
+    /// ablation, docs/REPORT.md 4.2; see docs/TRAINING.md round 17)
+    #[arg(long, value_enum)]
+    pub inertia: Option<InertiaArg>,
     /// Final stiffness scale of the gradient filter: with --steps, β moves geometrically from
     /// --precondition to it over the run (default: constant)
     #[arg(long)]
@@ -246,6 +251,24 @@ impl From<BasisRowNormArg> for BasisRowNorm {
             BasisRowNormArg::Off => Self::Off,
             BasisRowNormArg::Dynamic => Self::Dynamic,
             BasisRowNormArg::Both => Self::Both,
+        }
+    }
+}
+
+/// The inertia's treatment of the previous frames, on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum InertiaArg {
+    /// The previous frames held constant (the paper's).
+    Ours,
+    /// Gradients flow into the previous frames too (SNUG's).
+    Snug,
+}
+
+impl From<InertiaArg> for InertiaMode {
+    fn from(arg: InertiaArg) -> Self {
+        match arg {
+            InertiaArg::Ours => Self::Ours,
+            InertiaArg::Snug => Self::Snug,
         }
     }
 }
@@ -409,6 +432,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(beta) = args.propagate_history {
         train.history_propagation = beta;
+    }
+    if let Some(inertia) = args.inertia {
+        train.inertia_mode = inertia.into();
     }
     if let Some(b) = args.precondition_final {
         train.precondition_final_stiffness = Some(b);
