@@ -34,6 +34,8 @@ mod crash;
 mod disk_full;
 #[path = "pipeline/filter.rs"]
 mod filter;
+#[path = "pipeline/fit_reference.rs"]
+mod fit_reference;
 #[path = "pipeline/fixture.rs"]
 mod fixture;
 #[path = "pipeline/resume.rs"]

@@ -170,6 +170,19 @@ pub struct TrainArgs {
     /// frames it shreds the t-shirt; see docs/TRAINING.md round 17)
     #[arg(long, value_name = "BETA")]
     pub propagate_history: Option<f64>,
+    /// Hand each moving window's loss-frame gradient back to the two frames its physics step
+    /// starts from (the least-squares residual's gradient), with this stiffness scale for the
+    /// filter D (D + βK)⁻¹ it goes through, in [0, 100] (default 0 = off; docs/TRAINING.md
+    /// round 18)
+    #[arg(long, value_name = "BETA")]
+    pub history_adjoint: Option<f64>,
+    /// A diagnostic, not the method: fit the network directly to our simulator's frames of
+    /// every training motion, the PC2 caches in DIR (a run's `reference/` folder, as
+    /// `compare` writes it), to see how close the network can come to the simulator at all.
+    /// Needs --still-fraction 0; turns the mirrored copies of the motions off (their frames
+    /// are not simulated) (docs/TRAINING.md round 18)
+    #[arg(long, value_name = "DIR")]
+    pub fit_reference: Option<PathBuf>,
     /// How the inertia term treats the network's two previous frames: `ours` (default: held
     /// constant, the paper's) or `snug` (gradients flow into them too, SNUG's; the paper's
     /// ablation, docs/REPORT.md 4.2; see docs/TRAINING.md round 17)
@@ -432,6 +445,13 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(beta) = args.propagate_history {
         train.history_propagation = beta;
+    }
+    if let Some(beta) = args.history_adjoint {
+        train.history_adjoint = beta;
+    }
+    if let Some(dir) = &args.fit_reference {
+        train.fit_reference = Some(dir.clone());
+        train.mirror_poses = false;
     }
     if let Some(inertia) = args.inertia {
         train.inertia_mode = inertia.into();

@@ -227,6 +227,25 @@ pub struct TrainConfig {
     /// unchanged; with 12 the carried gradient (up to 78 times a constant residual) shreds
     /// the garment. Experimental; keep the loss frames few.
     pub history_propagation: f64,
+    /// Stiffness scale β'' of the history adjoint, in [0, 100] (0, the default: off). With
+    /// it, each moving window's (filtered) loss-frame gradient `g_k` is also handed to the
+    /// two frames its physics step starts from, `g_{k-1} -= 2 P g_k` and `g_{k-2} += P g_k`
+    /// with `P = D (D + β''K)⁻¹`: the gradient of the least-squares residual of every frame's
+    /// physics step instead of the stop-gradient loss's, with the same fixed point. The
+    /// stop-gradient descent is unstable for the soft modes a motion drives faster than
+    /// their natural frequency (the swing and the slip) once the network's frames share
+    /// parameters; this one is not (docs/TRAINING.md round 18). Needs the gradient filter
+    /// on (`precondition_stiffness > 0`).
+    pub history_adjoint: f64,
+    /// A diagnostic, not the method (default None): a folder of our own simulator's frames
+    /// of every training motion (the PC2 caches `compare` writes in a run's `reference/`
+    /// folder) that the network is fitted to directly, with the mass-weighted squared
+    /// distance `Σ m |x - x_sim|² / (2Δt²)` in place of the physics loss's gradient (a
+    /// training step's logged loss is then this fit's; validation stays the physics'). It shows how close the architecture
+    /// can come to the simulator at all ([`crate::fit_reference`]). Needs `still_fraction`
+    /// and `augmentation_fraction` 0 and `mirror_poses` off (their frames have no simulated
+    /// counterpart).
+    pub fit_reference: Option<std::path::PathBuf>,
 }
 
 impl Default for TrainConfig {
@@ -267,6 +286,8 @@ impl Default for TrainConfig {
             basis_row_norm: BasisRowNorm::Off,
             weight_average: 0.0,
             history_propagation: 0.0,
+            history_adjoint: 0.0,
+            fit_reference: None,
         }
     }
 }
@@ -463,6 +484,32 @@ impl TrainConfig {
             self.history_propagation,
             "0 unless the gradient filter is on (precondition_stiffness > 0)",
         )?;
+        check(
+            (0.0..=100.0).contains(&self.history_adjoint),
+            "history_adjoint",
+            self.history_adjoint,
+            "[0, 100]",
+        )?;
+        check(
+            self.history_adjoint == 0.0 || self.precondition_stiffness > 0.0,
+            "history_adjoint",
+            self.history_adjoint,
+            "0 unless the gradient filter is on (precondition_stiffness > 0)",
+        )?;
+        if self.fit_reference.is_some() {
+            check(
+                self.still_fraction == 0.0 && self.augmentation_fraction == 0.0,
+                "still_fraction",
+                self.still_fraction,
+                "0 (and augmentation_fraction 0) when fitting to reference frames",
+            )?;
+            check(
+                !self.mirror_poses,
+                "mirror_poses",
+                self.mirror_poses,
+                "false when fitting to reference frames",
+            )?;
+        }
         if let Some(m) = self.max_minutes {
             check(m.is_finite() && m > 0.0, "max_minutes", m, "> 0")?;
         }
@@ -621,6 +668,37 @@ mod tests {
             ..Default::default()
         };
         assert!(propagated.validate(30.0).is_ok());
+        // The history adjoint: in [0, 100], with the gradient filter only.
+        for bad in [
+            TrainConfig {
+                history_adjoint: -1.0,
+                ..Default::default()
+            },
+            TrainConfig {
+                history_adjoint: 1.0,
+                precondition_stiffness: 0.0,
+                ..Default::default()
+            },
+        ] {
+            assert_eq!(refused(bad), "history_adjoint");
+        }
+        // Fitting to reference frames: no still or augmented windows (no simulated frames).
+        let with_still = TrainConfig {
+            fit_reference: Some("runs/x/reference".into()),
+            ..Default::default()
+        };
+        assert_eq!(refused(with_still), "still_fraction");
+        let mirrored = TrainConfig {
+            fit_reference: Some("runs/x/reference".into()),
+            still_fraction: 0.0,
+            ..Default::default()
+        };
+        assert_eq!(refused(mirrored.clone()), "mirror_poses");
+        let fitted = TrainConfig {
+            mirror_poses: false,
+            ..mirrored
+        };
+        assert!(fitted.validate(30.0).is_ok());
         // The rate is the scene's: checked against the trainer's range by its own name.
         let e = TrainConfig::default().validate(2.0).unwrap_err();
         assert_eq!(e.field, "training_fps");

@@ -17,6 +17,8 @@ pub struct FilterCache {
     filter: Option<Arc<GradientFilter>>,
     /// The history propagation's `D (D + β'K)⁻¹` ([`TrainConfig::history_propagation`]).
     propagation: Option<Arc<GradientFilter>>,
+    /// The history adjoint's `D (D + β''K)⁻¹` ([`TrainConfig::history_adjoint`]).
+    adjoint: Option<Arc<GradientFilter>>,
     /// Steps taken (restored with a checkpoint), for the schedule.
     steps_taken: u64,
 }
@@ -70,6 +72,28 @@ impl FilterCache {
         Ok(self.propagation.clone())
     }
 
+    /// The history adjoint's filter, `None` when the settings ask for none.
+    pub fn adjoint(
+        &mut self,
+        config: &TrainConfig,
+        terms: &PhysicsTerms,
+        dt_secs: f32,
+    ) -> Result<Option<Arc<GradientFilter>>, TrainError> {
+        let beta = config.history_adjoint;
+        if beta <= 0.0 {
+            return Ok(None);
+        }
+        if self.adjoint.is_none() {
+            self.adjoint = Some(Arc::new(GradientFilter::new(
+                terms.rest(),
+                terms.fabric(),
+                dt_secs,
+                beta,
+            )?));
+        }
+        Ok(self.adjoint.clone())
+    }
+
     /// Counts a step whose update was made.
     pub fn count_step(&mut self) {
         self.steps_taken += 1;
@@ -84,6 +108,7 @@ impl FilterCache {
     pub fn reset(&mut self) {
         self.filter = None;
         self.propagation = None;
+        self.adjoint = None;
     }
 }
 
@@ -101,13 +126,24 @@ pub fn precondition_schedule(config: &TrainConfig, step: u64) -> f64 {
     }
 }
 
+/// What a step does with a gradient along each window's frames, over the moving windows
+/// `samples` (rows of `[B, K, V, 3]` are sample-major).
+pub struct HistoryTerms<'a> {
+    /// Carries the gradient forward in time ([`propagate_history`]).
+    pub propagation: Option<&'a GradientFilter>,
+    /// Hands each loss frame's residual to the two frames before it ([`adjoint_history`]).
+    pub adjoint: Option<&'a GradientFilter>,
+    /// The samples (windows) both act on.
+    pub samples: std::ops::Range<usize>,
+}
+
 /// `Σ x_net · sg(F(∂total/∂x) + ∂plain/∂x_plain)`, F the gradient filter: its gradient with
 /// respect to the network's output `x_net` is the filtered physics gradient (the first
 /// `plain_rows` rows of `[B·K, V, 3]` keep the plain one), plus, when given, the plain
 /// gradient of a second loss `plain` taken on its own detached copy `x_plain`. `x` is the
-/// detached leaf copy of `x_net` that `total` was computed from. With `propagation`, the
-/// summed gradient is then carried forward in time over the samples it names
-/// ([`propagate_history`]).
+/// detached leaf copy of `x_net` that `total` was computed from. The summed gradient is then
+/// handed back to the previous frames ([`adjoint_history`]) and carried forward in time
+/// ([`propagate_history`]) over the samples of `history`, where it asks for them.
 pub fn filtered_surrogate(
     filter: &GradientFilter,
     x_net: &Tensor<4>,
@@ -115,7 +151,7 @@ pub fn filtered_surrogate(
     total: Tensor<1>,
     plain_rows: usize,
     plain: Option<(Tensor<4>, Tensor<1>)>,
-    propagation: Option<(&GradientFilter, std::ops::Range<usize>)>,
+    history: HistoryTerms<'_>,
 ) -> Result<Tensor<1>, TrainError> {
     let dims = x.dims();
     let gradient_of = |leaf: &Tensor<4>, loss: Tensor<1>| -> Result<Vec<f32>, TrainError> {
@@ -134,8 +170,11 @@ pub fn filtered_surrogate(
             *a += b;
         }
     }
-    if let Some((propagation, samples)) = propagation {
-        propagate_history(propagation, &mut g, dims[1], samples)?;
+    if let Some(adjoint) = history.adjoint {
+        adjoint_history(adjoint, &mut g, dims[1], history.samples.clone())?;
+    }
+    if let Some(propagation) = history.propagation {
+        propagate_history(propagation, &mut g, dims[1], history.samples)?;
     }
     let g = Tensor::<4>::from_data(TensorData::new(g, dims), &x_net.device());
     Ok((x_net.clone() * g).sum())
@@ -179,6 +218,57 @@ pub fn propagate_history(
                     .collect();
                 propagation.apply(&mut carry)?;
                 for (out, c) in after[..row].iter_mut().zip(&carry) {
+                    *out += c;
+                }
+            }
+            Ok(())
+        })?;
+    Ok(())
+}
+
+/// Hands each loss frame's gradient `g_k` (`[B·K, V, 3]`, sample-major, `K = frames`, loss
+/// frames `2..K`) to the two frames its physics step starts from: `g_{k-1} -= 2 P g_k`,
+/// `g_{k-2} += P g_k`, `P` the `adjoint` filter ([`TrainConfig::history_adjoint`]), every
+/// `P g_k` taken from the gradient as it came in. With `P = D W` and `W ≈ (D + K)⁻¹`, the
+/// result is the gradient of the least-squares residual `½ Σ_k r_kᵀ W r_k` (`r_k` the
+/// physics gradient of frame k, whose derivatives with respect to frames `k - 1` and `k - 2`
+/// are `-2D` and `D`): the same fixed point as the stop-gradient loss (all `r_k = 0`), but a
+/// descent that is stable for every mode, where the stop-gradient one is unstable for the
+/// soft modes a motion drives faster than their natural frequency (docs/TRAINING.md, round
+/// 18). Samples outside `samples` are left as they are.
+pub fn adjoint_history(
+    adjoint: &GradientFilter,
+    g: &mut [f32],
+    frames: usize,
+    samples: std::ops::Range<usize>,
+) -> Result<(), TrainError> {
+    use rayon::prelude::*;
+    let row = adjoint.vertex_count() * 3;
+    let block = frames * row;
+    if row == 0 || frames == 0 || !g.len().is_multiple_of(block) {
+        return Err(PhysicsError::ShapeMismatch {
+            what: "gradient to hand back".into(),
+            expected: format!("whole samples of {frames} frames of {row} values"),
+            found: format!("{} values", g.len()),
+        }
+        .into());
+    }
+    let end = samples.end.min(g.len() / block);
+    let start = samples.start.min(end);
+    g[start * block..end * block]
+        .par_chunks_mut(block)
+        .try_for_each(|sample| -> Result<(), PhysicsError> {
+            let mut handed = Vec::with_capacity(frames.saturating_sub(2));
+            for k in 2..frames {
+                let mut c = sample[k * row..(k + 1) * row].to_vec();
+                adjoint.apply(&mut c)?;
+                handed.push(c);
+            }
+            for (k, c) in (2..frames).zip(&handed) {
+                for (out, c) in sample[(k - 1) * row..k * row].iter_mut().zip(c) {
+                    *out -= 2.0 * c;
+                }
+                for (out, c) in sample[(k - 2) * row..(k - 1) * row].iter_mut().zip(c) {
                     *out += c;
                 }
             }
@@ -259,6 +349,62 @@ mod tests {
         propagate_history(&p, &mut zero, frames, 0..1).unwrap();
         assert!(zero.iter().all(|x| *x == 0.0));
         assert!(propagate_history(&p, &mut [0.0; 7], frames, 0..1).is_err());
+    }
+
+    #[test]
+    fn the_adjoint_hands_each_loss_frames_gradient_to_the_frames_its_step_starts_from() {
+        let (p, inertial) = propagation();
+        let (frames, row) = (4, p.vertex_count() * 3);
+        // Mass-weighted translations, which the filter passes unchanged (K t = 0).
+        let translation = |a: f32, b: f32| -> Vec<f32> {
+            inertial.iter().flat_map(|d| [a * d, 0.0, b * d]).collect()
+        };
+        let (a, b) = (translation(1.0, 0.0), translation(0.0, -2.0));
+        // Sample 0 is left out; sample 1 has loss frames 2 (a) and 3 (b).
+        let mut g: Vec<f32> = (0..2 * frames * row)
+            .map(|i| ((i * 13) % 7) as f32 - 3.0)
+            .collect();
+        let sample0 = g[..frames * row].to_vec();
+        let second = &mut g[frames * row..];
+        second.fill(0.0);
+        second[2 * row..3 * row].copy_from_slice(&a);
+        second[3 * row..].copy_from_slice(&b);
+        adjoint_history(&p, &mut g, frames, 1..2).unwrap();
+        assert_eq!(g[..frames * row], sample0[..]);
+        // g_0 = a, g_1 = -2a + b, g_2 = a - 2b, g_3 = b: each residual's derivative with
+        // respect to its own frame and the two before (1, -2, 1 times D).
+        let expected = [
+            a.clone(),
+            a.iter()
+                .zip(&b)
+                .map(|(a, b)| -2.0 * a + b)
+                .collect::<Vec<_>>(),
+            a.iter().zip(&b).map(|(a, b)| a - 2.0 * b).collect(),
+            b.clone(),
+        ];
+        let second = &g[frames * row..];
+        for (k, want) in expected.iter().enumerate() {
+            for (got, want) in second[k * row..(k + 1) * row].iter().zip(want) {
+                assert!(
+                    (got - want).abs() <= 1e-3 * want.abs().max(1.0),
+                    "frame {k}: {got} vs {want}"
+                );
+            }
+        }
+        // The roughest mode is handed back damped; zero stays zero; broken shapes refused.
+        let rough: Vec<f32> = (0..row / 3)
+            .flat_map(|i| [if i % 2 == 0 { 1.0 } else { -1.0 }, 0.0, 0.0])
+            .collect();
+        let mut g = vec![0.0f32; 3 * row];
+        g[2 * row..].copy_from_slice(&rough);
+        adjoint_history(&p, &mut g, 3, 0..1).unwrap();
+        let norm = |v: &[f32]| v.iter().map(|x| x * x).sum::<f32>().sqrt();
+        assert!(norm(&g[row..2 * row]) < 2.0 * 0.4 * norm(&rough));
+        assert_eq!(g[2 * row..], rough[..]);
+        let mut zero = vec![0.0f32; 3 * row];
+        adjoint_history(&p, &mut zero, 3, 0..1).unwrap();
+        assert!(zero.iter().all(|x| *x == 0.0));
+        assert!(adjoint_history(&p, &mut [0.0; 7], 3, 0..1).is_err());
     }
 
     #[test]

@@ -19,6 +19,7 @@ pub mod config;
 pub mod data;
 pub mod eval;
 pub mod filter;
+pub mod fit_reference;
 pub mod handle;
 pub mod health;
 pub mod losses;
@@ -356,6 +357,7 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
     if !has_checkpoint && train.centre_init {
         session.centre_biases()?;
     }
+    session.load_fit_reference()?;
     let (start_step, history) = if has_checkpoint {
         resume_state(&mut session, &mut warnings)?
     } else {

@@ -36,7 +36,8 @@ use super::TrainError;
 use super::adam::TrainOptimiser;
 use super::config::{InertiaMode, TrainConfig};
 use super::data::{Batch, Dataset};
-use super::filter::{FilterCache, filtered_surrogate};
+use super::filter::{FilterCache, HistoryTerms, filtered_surrogate};
+use super::fit_reference::FitReference;
 use super::handle::Session;
 use super::metrics::{MetricHistory, MetricRecord};
 use super::run_dir::{CheckpointState, RunDir};
@@ -72,6 +73,8 @@ pub struct NeuralSession {
     init_std: f64,
     /// The gradient filter of [`TrainConfig::precondition_stiffness`].
     filter: FilterCache,
+    /// Frames of [`TrainConfig::fit_reference`], loaded on the first step.
+    reference: Option<FitReference>,
 }
 
 /// The parts a session is built from.
@@ -130,6 +133,7 @@ impl NeuralSession {
             activity: None,
             init_std: parts.init_std,
             filter: FilterCache::default(),
+            reference: None,
         }
     }
 
@@ -330,6 +334,48 @@ impl NeuralSession {
     }
 
     /// Frames of the configured window at the training rate.
+    /// Loads the frames of [`TrainConfig::fit_reference`] (when set), so that a folder
+    /// without them is refused before the first step.
+    pub fn load_fit_reference(&mut self) -> Result<(), TrainError> {
+        if let Some(dir) = &self.config.fit_reference {
+            let v = self.garment.vertex_count();
+            self.reference = Some(FitReference::load(
+                dir,
+                self.train.motions.iter().map(|m| m.name.as_str()),
+                v,
+            )?);
+        }
+        Ok(())
+    }
+
+    /// The mass-weighted squared distance `Σ m |x - x_sim|² / (2Δt²)` (batch mean) of the
+    /// loss frames of `x_net` (`[B, K, V, 3]`) from the frames of
+    /// [`TrainConfig::fit_reference`] ([`Self::load_fit_reference`]).
+    fn reference_loss(
+        &self,
+        x_net: &Tensor<4>,
+        batch: &crate::data::Batch,
+    ) -> Result<Tensor<1>, TrainError> {
+        let v = self.garment.vertex_count();
+        let rows = batch.stacked_frames(2);
+        let target = match &self.reference {
+            Some(r) => r.rows(&rows)?,
+            None => return Err(TrainError::Data("reference frames not loaded".into())),
+        };
+        let target = Tensor::<3>::from_data(
+            burn::tensor::TensorData::new(target, [rows.len(), v, 3]),
+            &self.device,
+        );
+        let x_t = stack_frames(x_net, 2, batch.predicted, batch.size);
+        let dt = f64::from(self.dt_secs());
+        let dx2 = neural_cloth_physics::tensors::norm2(x_t - target);
+        Ok(
+            neural_cloth_physics::tensors::per_sample(dx2 * self.terms.tensors().mass.clone())
+                .mul_scalar(0.5 / (dt * dt) / batch.size.max(1) as f64)
+                .sum(),
+        )
+    }
+
     fn window_frames(&self) -> usize {
         self.config.window_frames(self.fps)
     }
@@ -406,27 +452,38 @@ impl Session for NeuralSession {
             plain,
             contacts,
             friction,
-            loss,
+            mut loss,
         } = self.step_losses(&x_net, &x, filter.is_some(), &batch, &blended, b - augment)?;
-        let grads = match filter {
-            None => total.backward(),
-            Some(filter) => {
+        let grads = match (filter, self.reference.is_some()) {
+            // Fitting to reference frames: the step's loss is the fit's.
+            (_, true) => {
+                let fit = self.reference_loss(&x_net, &batch)?;
+                loss = fit.clone().into_scalar::<f64>();
+                fit.backward()
+            }
+            (None, false) => total.backward(),
+            (Some(filter), false) => {
                 // Rows of `x` are sample-major (`[B, K]`); still windows come first.
                 let plain_rows = if self.config.precondition_moving_only {
                     still * predicted
                 } else {
                     0
                 };
-                // The history propagation acts on the moving windows with dynamics: after
-                // the still ones, before the augmented (quasi-static) ones.
+                // The history terms act on the moving windows with dynamics: after the
+                // still ones, before the augmented (quasi-static) ones.
                 let propagation =
                     self.filter
                         .propagation(&self.config, &self.terms, self.dt_secs())?;
-                let propagation = match (&propagation, self.terms.effects().dynamics) {
-                    (Some(p), true) => Some((p.as_ref(), still..b - augment)),
-                    _ => None,
+                let adjoint = self
+                    .filter
+                    .adjoint(&self.config, &self.terms, self.dt_secs())?;
+                let dynamics = self.terms.effects().dynamics;
+                let history = HistoryTerms {
+                    propagation: propagation.as_deref().filter(|_| dynamics),
+                    adjoint: adjoint.as_deref().filter(|_| dynamics),
+                    samples: still..b - augment,
                 };
-                filtered_surrogate(&filter, &x_net, &x, total, plain_rows, plain, propagation)?
+                filtered_surrogate(&filter, &x_net, &x, total, plain_rows, plain, history)?
                     .backward()
             }
         };
