@@ -799,7 +799,7 @@ fn pinning_and_every_other_effect_act_in_training() {
 /// pinned skirt with every effect on, finite, and changes what a step optimises.
 #[test]
 fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
-    let losses = |loss_frames: usize, history_propagation: f64| {
+    let losses = |loss_frames: usize, history_propagation: f64, history_adjoint: f64| {
         let dir = tempfile::tempdir().unwrap();
         let (scene, scene_config) = tiny_skirt(|_| {});
         let (mut session, _) = prepare(TrainSetup {
@@ -810,6 +810,7 @@ fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
             train: TrainConfig {
                 loss_frames,
                 history_propagation,
+                history_adjoint,
                 predrape_secs: 0.0,
                 ..quick_config()
             },
@@ -829,8 +830,8 @@ fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
         assert!(after.is_finite(), "{after:?}");
         (before.loss, steps, after.loss)
     };
-    let (before_one, one, _) = losses(1, 0.0);
-    let (before_three, three, after_three) = losses(3, 0.0);
+    let (before_one, one, after_one) = losses(1, 0.0, 0.0);
+    let (before_three, three, after_three) = losses(3, 0.0, 0.0);
     // Validation reads the last frame only, so the untrained model scores the same.
     let relative = |a: f64, b: f64| (a - b).abs() / a.abs().max(b.abs()).max(1e-12);
     assert!(
@@ -844,13 +845,28 @@ fn several_loss_frames_train_the_pinned_skirt_with_every_effect() {
         one[0]
     );
     // The history propagation (round 17) changes the update, not the losses it starts from.
-    let (before_carried, carried, after_carried) = losses(3, 1.0);
+    let (before_carried, carried, after_carried) = losses(3, 1.0, 0.0);
     assert_eq!(before_carried, before_three);
     assert_eq!(carried[0], three[0]);
     assert!(
         relative(after_carried, after_three) > 1e-9,
         "the history propagation left training unchanged: {after_carried} against {after_three}"
     );
+    // So does the history adjoint (round 18), with one loss frame (it acts on the two
+    // frames before it) and with three.
+    for (frames, plain, plain_after) in [(1, &one, after_one), (3, &three, after_three)] {
+        let (_, handed, after_handed) = losses(frames, 0.0, 1.0);
+        assert_eq!(handed[0], plain[0]);
+        assert!(
+            handed.iter().all(|l| l.is_finite()) && after_handed.is_finite(),
+            "{handed:?}"
+        );
+        assert!(
+            relative(after_handed, plain_after) > 1e-9,
+            "the history adjoint left training unchanged ({frames} loss frames): \
+             {after_handed} against {plain_after}"
+        );
+    }
     // A window too short for its loss frames is refused.
     let too_many = TrainConfig {
         loss_frames: 8,
