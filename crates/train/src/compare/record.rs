@@ -43,6 +43,12 @@ pub struct TrainingCheck {
     pub iterations: usize,
     /// The comparison.
     pub motion: MotionComparison,
+    /// The run was fitted to the simulator's frames
+    /// ([`TrainConfig::fit_reference`](crate::TrainConfig::fit_reference)): a diagnostic,
+    /// not the method, so the report judges no target on it. False in records made before
+    /// the field existed.
+    #[serde(default)]
+    pub fitted_to_simulator: bool,
 }
 
 impl TrainingCheck {
@@ -94,6 +100,7 @@ impl TrainingCheck {
                 w: report.options.w,
                 iterations: report.options.iterations,
                 motion: m.clone(),
+                fitted_to_simulator: trained.meta.train.fit_reference.is_some(),
             })
             .collect()
     }
