@@ -172,8 +172,8 @@ pub struct TrainArgs {
     pub propagate_history: Option<f64>,
     /// Hand each moving window's loss-frame gradient back to the two frames its physics step
     /// starts from (the least-squares residual's gradient), with this stiffness scale for the
-    /// filter D (D + βK)⁻¹ it goes through, in [0, 100] (default 0 = off; docs/TRAINING.md
-    /// round 18)
+    /// filter D (D + βK)⁻¹ it goes through, in [0, 100] (default 0 = off; experimental: no
+    /// closer to the simulator on the t-shirt, docs/TRAINING.md round 18)
     #[arg(long, value_name = "BETA")]
     pub history_adjoint: Option<f64>,
     /// A diagnostic, not the method: fit the network directly to our simulator's frames of

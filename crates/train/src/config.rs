@@ -234,8 +234,10 @@ pub struct TrainConfig {
     /// physics step instead of the stop-gradient loss's, with the same fixed point. The
     /// stop-gradient descent is unstable for the soft modes a motion drives faster than
     /// their natural frequency (the swing and the slip) once the network's frames share
-    /// parameters; this one is not (docs/TRAINING.md round 18). Needs the gradient filter
-    /// on (`precondition_stiffness > 0`).
+    /// parameters; this one is not (a toy shows both, docs/TRAINING.md round 18). Measured
+    /// there on the t-shirt (seed 43, 1100 steps, β'' = 1): no closer to the simulator
+    /// (held-out spin 31.1 against 30.0 mm, idle 4.5 against 2.7, less swing); experimental.
+    /// Needs the gradient filter on (`precondition_stiffness > 0`).
     pub history_adjoint: f64,
     /// A diagnostic, not the method (default None): a folder of our own simulator's frames
     /// of every training motion (the PC2 caches `compare` writes in a run's `reference/`

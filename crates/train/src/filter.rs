@@ -57,19 +57,12 @@ impl FilterCache {
         terms: &PhysicsTerms,
         dt_secs: f32,
     ) -> Result<Option<Arc<GradientFilter>>, TrainError> {
-        let beta = config.history_propagation;
-        if beta <= 0.0 {
-            return Ok(None);
-        }
-        if self.propagation.is_none() {
-            self.propagation = Some(Arc::new(GradientFilter::new(
-                terms.rest(),
-                terms.fabric(),
-                dt_secs,
-                beta,
-            )?));
-        }
-        Ok(self.propagation.clone())
+        built_once(
+            &mut self.propagation,
+            config.history_propagation,
+            terms,
+            dt_secs,
+        )
     }
 
     /// The history adjoint's filter, `None` when the settings ask for none.
@@ -79,19 +72,7 @@ impl FilterCache {
         terms: &PhysicsTerms,
         dt_secs: f32,
     ) -> Result<Option<Arc<GradientFilter>>, TrainError> {
-        let beta = config.history_adjoint;
-        if beta <= 0.0 {
-            return Ok(None);
-        }
-        if self.adjoint.is_none() {
-            self.adjoint = Some(Arc::new(GradientFilter::new(
-                terms.rest(),
-                terms.fabric(),
-                dt_secs,
-                beta,
-            )?));
-        }
-        Ok(self.adjoint.clone())
+        built_once(&mut self.adjoint, config.history_adjoint, terms, dt_secs)
     }
 
     /// Counts a step whose update was made.
@@ -110,6 +91,28 @@ impl FilterCache {
         self.propagation = None;
         self.adjoint = None;
     }
+}
+
+/// The filter at stiffness scale `beta` kept in `slot` (built on first use), `None` when
+/// `beta` is not positive.
+fn built_once(
+    slot: &mut Option<Arc<GradientFilter>>,
+    beta: f64,
+    terms: &PhysicsTerms,
+    dt_secs: f32,
+) -> Result<Option<Arc<GradientFilter>>, TrainError> {
+    if beta <= 0.0 {
+        return Ok(None);
+    }
+    if slot.is_none() {
+        *slot = Some(Arc::new(GradientFilter::new(
+            terms.rest(),
+            terms.fabric(),
+            dt_secs,
+            beta,
+        )?));
+    }
+    Ok(slot.clone())
 }
 
 /// The filter's stiffness scale before step `step` (0-based): constant, or, with
@@ -193,37 +196,22 @@ pub fn propagate_history(
     frames: usize,
     samples: std::ops::Range<usize>,
 ) -> Result<(), TrainError> {
-    use rayon::prelude::*;
     let row = propagation.vertex_count() * 3;
-    let block = frames * row;
-    if row == 0 || frames == 0 || !g.len().is_multiple_of(block) {
-        return Err(PhysicsError::ShapeMismatch {
-            what: "gradient to propagate".into(),
-            expected: format!("whole samples of {frames} frames of {row} values"),
-            found: format!("{} values", g.len()),
-        }
-        .into());
-    }
-    let end = samples.end.min(g.len() / block);
-    let start = samples.start.min(end);
-    g[start * block..end * block]
-        .par_chunks_mut(block)
-        .try_for_each(|sample| -> Result<(), PhysicsError> {
-            for k in 2..frames {
-                let (before, after) = sample.split_at_mut(k * row);
-                let mut carry: Vec<f32> = before[(k - 1) * row..]
-                    .iter()
-                    .zip(&before[(k - 2) * row..(k - 1) * row])
-                    .map(|(g1, g2)| 2.0 * g1 - g2)
-                    .collect();
-                propagation.apply(&mut carry)?;
-                for (out, c) in after[..row].iter_mut().zip(&carry) {
-                    *out += c;
-                }
+    for_each_sample(g, row, frames, samples, "gradient to propagate", |sample| {
+        for k in 2..frames {
+            let (before, after) = sample.split_at_mut(k * row);
+            let mut carry: Vec<f32> = before[(k - 1) * row..]
+                .iter()
+                .zip(&before[(k - 2) * row..(k - 1) * row])
+                .map(|(g1, g2)| 2.0 * g1 - g2)
+                .collect();
+            propagation.apply(&mut carry)?;
+            for (out, c) in after[..row].iter_mut().zip(&carry) {
+                *out += c;
             }
-            Ok(())
-        })?;
-    Ok(())
+        }
+        Ok(())
+    })
 }
 
 /// Hands each loss frame's gradient `g_k` (`[B·K, V, 3]`, sample-major, `K = frames`, loss
@@ -242,12 +230,41 @@ pub fn adjoint_history(
     frames: usize,
     samples: std::ops::Range<usize>,
 ) -> Result<(), TrainError> {
-    use rayon::prelude::*;
     let row = adjoint.vertex_count() * 3;
+    for_each_sample(g, row, frames, samples, "gradient to hand back", |sample| {
+        let mut handed = Vec::with_capacity(frames.saturating_sub(2));
+        for k in 2..frames {
+            let mut c = sample[k * row..(k + 1) * row].to_vec();
+            adjoint.apply(&mut c)?;
+            handed.push(c);
+        }
+        for (k, c) in (2..frames).zip(&handed) {
+            for (out, c) in sample[(k - 1) * row..k * row].iter_mut().zip(c) {
+                *out -= 2.0 * c;
+            }
+            for (out, c) in sample[(k - 2) * row..(k - 1) * row].iter_mut().zip(c) {
+                *out += c;
+            }
+        }
+        Ok(())
+    })
+}
+
+/// Runs `f` on the block of `frames · row` values of each sample in `samples` of `g` (in
+/// parallel); `what` names `g` when it is not whole samples of that size.
+fn for_each_sample(
+    g: &mut [f32],
+    row: usize,
+    frames: usize,
+    samples: std::ops::Range<usize>,
+    what: &str,
+    f: impl Fn(&mut [f32]) -> Result<(), PhysicsError> + Sync + Send,
+) -> Result<(), TrainError> {
+    use rayon::prelude::*;
     let block = frames * row;
     if row == 0 || frames == 0 || !g.len().is_multiple_of(block) {
         return Err(PhysicsError::ShapeMismatch {
-            what: "gradient to hand back".into(),
+            what: what.into(),
             expected: format!("whole samples of {frames} frames of {row} values"),
             found: format!("{} values", g.len()),
         }
@@ -257,23 +274,7 @@ pub fn adjoint_history(
     let start = samples.start.min(end);
     g[start * block..end * block]
         .par_chunks_mut(block)
-        .try_for_each(|sample| -> Result<(), PhysicsError> {
-            let mut handed = Vec::with_capacity(frames.saturating_sub(2));
-            for k in 2..frames {
-                let mut c = sample[k * row..(k + 1) * row].to_vec();
-                adjoint.apply(&mut c)?;
-                handed.push(c);
-            }
-            for (k, c) in (2..frames).zip(&handed) {
-                for (out, c) in sample[(k - 1) * row..k * row].iter_mut().zip(c) {
-                    *out -= 2.0 * c;
-                }
-                for (out, c) in sample[(k - 2) * row..(k - 1) * row].iter_mut().zip(c) {
-                    *out += c;
-                }
-            }
-            Ok(())
-        })?;
+        .try_for_each(f)?;
     Ok(())
 }
 
