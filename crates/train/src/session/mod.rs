@@ -74,7 +74,7 @@ pub struct NeuralSession {
     init_std: f64,
     /// The gradient filter of [`TrainConfig::precondition_stiffness`].
     filter: FilterCache,
-    /// Frames of [`TrainConfig::fit_reference`], loaded on the first step.
+    /// Frames of [`TrainConfig::fit_reference`], loaded when the run is prepared.
     reference: Option<FitReference>,
 }
 
