@@ -14,6 +14,7 @@ mod scene_args;
 mod screenshot;
 mod soak;
 mod train;
+mod train_flags;
 
 use std::path::PathBuf;
 

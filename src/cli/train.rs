@@ -8,13 +8,14 @@ use anyhow::bail;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::scene_args::{SceneArgs, scene_config_from_args, scene_from_args};
-use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
+use super::train_flags::apply_flags;
+use neural_cloth::model::DescriptorConfig;
 use neural_cloth::scene::config::SceneConfig;
 use neural_cloth::train::retention::{MAX_KEEP_NEWEST, Retention};
 
 use neural_cloth::train::{
-    BackendKind, BasisRowNorm, InertiaMode, RunDir, RunLocation, TrainConfig, TrainEvent,
-    TrainSetup, Trainer, resume,
+    BasisRowNorm, InertiaMode, RunDir, RunLocation, TrainConfig, TrainEvent, TrainSetup, Trainer,
+    resume,
 };
 
 /// Arguments of `train`.
@@ -351,123 +352,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
             (scene, config, TrainConfig::default())
         }
     };
-    match args.backend {
-        Some(Backend::Cpu) => train.backend = BackendKind::Cpu,
-        Some(Backend::Wgpu) => train.backend = BackendKind::Wgpu,
-        None => {}
-    }
-    if let Some(n) = args.checkpoint_every {
-        train.checkpoint_every = n;
-    }
-    if let Some(n) = args.validate_every {
-        train.validate_every = n;
-    }
-    if let Some(b) = args.batch {
-        train.batch_size = b;
-    }
-    if let Some(w) = args.window {
-        train.window_secs = w;
-    }
-    if let Some(secs) = args.gru_burn_in {
-        train.gru_burn_in_secs = secs;
-    }
-    if args.gru_burn_in_random {
-        train.gru_burn_in_random = true;
-    }
-    if let Some(s) = args.seed {
-        train.seed = s;
-    }
-    if let Some(lr) = args.learning_rate {
-        train.learning_rate = lr;
-    }
-    let mut model = ClothNetConfig::default();
-    if let Some(s) = args.basis_lr_scale {
-        model.basis_lr_scale = s;
-    }
-    if let Some(s) = args.basis_bias_lr_scale {
-        model.basis_bias_lr_scale = s;
-    }
-    if let Some(g) = args.basis_init_gain {
-        model.basis_init_gain = g;
-    }
-    if let Some(widths) = &args.static_hidden {
-        model.static_hidden = widths.clone();
-    }
-    if let Some(p) = args.predrape_secs {
-        train.predrape_secs = p;
-    }
-    model.basis_bias = !args.no_basis_bias;
-    model.normalise_dynamic_input = args.scale_dynamic_input;
-    if let Some(on) = args.dynamic_basis {
-        model.dynamic_basis = on;
-    }
-    if let Some(s) = args.dynamic_basis_lr_scale {
-        model.dynamic_basis_lr_scale = s;
-    }
-    if args.no_centre_init {
-        train.centre_init = false;
-    }
-    if args.static_from_still {
-        train.static_from_still = true;
-    }
-    if args.keep_posed_bodies {
-        train.keep_posed_bodies = true;
-    }
-    if let Some(f) = args.augmentation {
-        train.augmentation_fraction = f;
-    }
-    if let Some(f) = args.still_fraction {
-        train.still_fraction = f;
-    }
-    if let Some(f) = args.lr_decay_fraction {
-        train.lr_decay_fraction = f;
-    }
-    if let Some(k) = args.loss_frames {
-        train.loss_frames = k;
-    }
-    if let Some(n) = args.warmup_steps {
-        train.warmup_steps = n;
-    }
-    if let Some(b) = args.precondition {
-        train.precondition_stiffness = b;
-    }
-    if let Some(moving_only) = args.precondition_moving_only {
-        train.precondition_moving_only = moving_only;
-    }
-    if let Some(dynamic_only) = args.precondition_dynamic_only {
-        train.precondition_dynamic_only = dynamic_only;
-    }
-    if let Some(which) = args.basis_row_norm {
-        train.basis_row_norm = which.into();
-    }
-    if let Some(decay) = args.weight_average {
-        train.weight_average = decay;
-    }
-    if let Some(beta) = args.propagate_history {
-        train.history_propagation = beta;
-    }
-    if let Some(beta) = args.history_adjoint {
-        train.history_adjoint = beta;
-    }
-    if let Some(dir) = &args.fit_reference {
-        train.fit_reference = Some(dir.clone());
-        train.mirror_poses = false;
-    }
-    if let Some(inertia) = args.inertia {
-        train.inertia_mode = inertia.into();
-    }
-    if let Some(b) = args.precondition_final {
-        train.precondition_final_stiffness = Some(b);
-    }
-    if let Some(f) = args.lr_final_factor {
-        train.lr_final_factor = f;
-    }
-    if let Some(d) = args.dead_limit {
-        train.dead_limit_pct = d;
-    }
-    if args.skip_fit_check {
-        train.fit_check = false;
-    }
+    let model = apply_flags(&args, &mut train);
     model.validate()?;
     // A resumed run goes on to the limits it recorded unless new ones are given.
     if args.resume.is_none() || args.steps.is_some() || args.minutes.is_some() {
