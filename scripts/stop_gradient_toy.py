@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-# Issue 11, round 18 (docs/TRAINING.md): why the paper's stop-gradient loss does not teach a
-# network the swing. Needs numpy; not part of the tests. Run: python3 scripts/stop_gradient_toy.py
+# Issue 11, round 18 (docs/TRAINING.md): the paper's stop-gradient descent is unstable for soft
+# modes driven above their natural frequency once frames share parameters (one candidate
+# cause of the missing swing; the network experiments show it is not the whole story). Needs numpy; not part of the tests. Run: python3 scripts/stop_gradient_toy.py
 #
 # Toy: 1-D mass on a spring (stiffness k) driven by a moving anchor a(t): each frame's
 # incremental potential f_t(x) = m/2 (x - 2x_{t-1} + x_{t-2})^2/dt^2 + k/2 (x - a_t)^2.
