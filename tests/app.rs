@@ -666,6 +666,7 @@ fn a_check_result_shows_every_row_compare_prints() {
         name: "spin".into(),
         measures,
         metrics: MetricPair::default(),
+        objective: Default::default(),
         reference: ReferenceInfo {
             path: PathBuf::from("spin.pc2"),
             cached: true,

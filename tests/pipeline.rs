@@ -1155,6 +1155,22 @@ pinning = true
             assert!(side.loss != 0.0 && side.gravity > 0.0, "{side:?}");
             assert!(side.loss >= side.gravity - 1e-9, "{side:?}");
         }
+        // Term by term, each side's objective sums to its loss, and the terms are there: the
+        // in-plane energy of a stretched garment, its gravity, its inertia once it moves.
+        for (side, terms) in [
+            (&m.metrics.network, &m.objective.network),
+            (&m.metrics.simulator, &m.objective.simulator),
+        ] {
+            assert!(
+                (terms.total() - side.loss).abs() < 1e-9 * side.loss.abs().max(1.0),
+                "{terms:?} vs {side:?}"
+            );
+            assert!(
+                terms.fixed.cloth_j > 0.0 && terms.fixed.gravity_j > 0.0,
+                "{terms:?}"
+            );
+            assert!(terms.inertia_j > 0.0, "{terms:?}");
+        }
         // Both stay on the body: centimetres apart, not metres.
         assert!(
             s.all.mean_mm > 0.0 && s.all.mean_mm < 500.0 && s.all.p95_mm >= s.all.mean_mm,

@@ -131,6 +131,7 @@ fn curves_show_the_last_check_against_simulation() {
             name: "spin".into(),
             measures,
             metrics: MetricPair::default(),
+            objective: Default::default(),
             reference: ReferenceInfo::default(),
         }],
     }));

@@ -58,7 +58,7 @@ pub mod terms;
 pub use collision::{BodyBatch, Contacts, PosedBody};
 pub use fabric::{ClothModel, FabricParams};
 pub use friction::FrictionContacts;
-pub use metrics::ClothMetrics;
+pub use metrics::{ClothMetrics, StaticTerms};
 /// The scene's effect set decides which terms are built and evaluated.
 pub use neural_cloth_core::scene::config::Effects;
 pub use precondition::GradientFilter;

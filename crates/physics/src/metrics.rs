@@ -20,7 +20,7 @@ use super::energies;
 use super::friction::{self, FrictionContacts};
 use super::paper_metrics;
 use super::tensors::{per_sample, positions_tensor, read_f32, read_f64};
-use super::{PhysicsError, PhysicsTerms};
+use super::{PhysicsError, PhysicsTerms, Term};
 
 /// Batch-averaged metrics. Lower is not always better (see paper §4.2): only strain and
 /// collisions have an obvious goal.
@@ -74,6 +74,42 @@ pub struct ClothMetrics {
     /// the skinned template, not known here).
     #[serde(default)]
     pub static_energy_j: Option<f64>,
+    /// [`Self::static_energy_j`] term by term; filled with it by [`sequence_metrics`].
+    #[serde(default)]
+    pub static_terms: Option<StaticTerms>,
+}
+
+/// The static objective of one frame (or a mean over frames) term by term, joules; a term the
+/// scene leaves out is 0.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StaticTerms {
+    /// In-plane energy: stretch, plus shear for Baraff-Witkin.
+    pub cloth_j: f64,
+    /// Bending energy.
+    pub bending_j: f64,
+    /// Body collision energy.
+    pub collision_j: f64,
+    /// Gravity potential.
+    pub gravity_j: f64,
+}
+
+impl StaticTerms {
+    /// The sum of the terms: the static objective.
+    pub fn total(&self) -> f64 {
+        self.cloth_j + self.bending_j + self.collision_j + self.gravity_j
+    }
+
+    /// Adds the batch mean `value` of `term` (pinning and the dynamic terms are not static
+    /// terms here and are ignored).
+    fn add(&mut self, term: Term, value: f64) {
+        match term {
+            Term::Stretch | Term::Shear => self.cloth_j += value,
+            Term::Bending => self.bending_j += value,
+            Term::Collision => self.collision_j += value,
+            Term::Gravity => self.gravity_j += value,
+            Term::Pinning | Term::Inertia | Term::Friction => {}
+        }
+    }
 }
 
 /// Two previous frames and the time step, for the inertia metric.
@@ -187,17 +223,27 @@ impl PhysicsTerms {
         x: &Tensor<3>,
         contacts: Option<&Contacts>,
     ) -> Result<Option<f64>, PhysicsError> {
+        Ok(self.static_terms_j(x, contacts)?.map(|t| t.total()))
+    }
+
+    /// [`Self::static_objective_j`] term by term (batch means).
+    pub fn static_terms_j(
+        &self,
+        x: &Tensor<3>,
+        contacts: Option<&Contacts>,
+    ) -> Result<Option<StaticTerms>, PhysicsError> {
         let contacts = contacts.filter(|c| c.points.dims() == x.dims());
         if self.effects().collision && contacts.is_none() {
             return Ok(None);
         }
-        match self
+        let mut terms = StaticTerms::default();
+        for (term, value) in self
             .static_losses_with(&x.clone().detach(), contacts)?
-            .total()
+            .terms
         {
-            Some(total) => Ok(read_f64(total)?.first().copied()),
-            None => Ok(Some(0.0)),
+            terms.add(term, read_f64(value)?.first().copied().unwrap_or(0.0));
         }
+        Ok(Some(terms))
     }
 }
 
@@ -270,7 +316,8 @@ pub fn sequence_metrics(
                 None
             };
             let mut m = terms.metrics(&xk, ck.as_ref(), history.as_ref())?;
-            m.static_energy_j = terms.static_objective_j(&xk, ck.as_ref())?;
+            m.static_terms = terms.static_terms_j(&xk, ck.as_ref())?;
+            m.static_energy_j = m.static_terms.map(|t| t.total());
             out.push(m);
         }
     }
@@ -366,7 +413,29 @@ mod tests {
             .map(|m| m.static_energy_j.unwrap())
             .sum::<f64>()
             / 2.0;
-        assert!((mean_of_frames - energy).abs() < 1e-9 * energy.abs().max(1.0));
+        // Per frame in one batch or two: the f32 sums differ in rounding only.
+        assert!(
+            (mean_of_frames - energy).abs() < 1e-6 * energy.abs().max(1.0),
+            "{mean_of_frames} vs {energy}"
+        );
+        // Term by term, each frame's terms sum to its objective, and each term is the batch
+        // mean of that energy alone.
+        for m in &per_frame {
+            let t = m.static_terms.unwrap();
+            assert!((t.total() - m.static_energy_j.unwrap()).abs() < 1e-12);
+            assert!(t.cloth_j > 0.0 && t.gravity_j != 0.0, "{t:?}");
+        }
+        let batch = terms.static_terms_j(&x, None).unwrap().unwrap();
+        for (term, value) in terms.static_energies(&x, None).unwrap() {
+            let mean = read_f64(value).unwrap().iter().sum::<f64>() / 2.0;
+            let got = match term {
+                Term::Bending => batch.bending_j,
+                Term::Gravity => batch.gravity_j,
+                Term::Collision => batch.collision_j,
+                _ => continue,
+            };
+            assert!((got - mean).abs() < 1e-6 * mean.abs().max(1.0), "{term:?}");
+        }
         assert!(
             terms
                 .metrics(&x, None, None)

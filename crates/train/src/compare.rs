@@ -63,6 +63,7 @@ use neural_cloth_core::scene::config::Split;
 use neural_cloth_core::scene::{Motion, Pose};
 use neural_cloth_model::ModelError;
 use neural_cloth_physics::metrics::sequence_metrics;
+use neural_cloth_physics::{ClothMetrics, StaticTerms};
 use neural_cloth_physics::{PhysicsError, PhysicsTerms, PosedBody};
 
 use super::config::ConfigError;
@@ -237,6 +238,64 @@ pub struct MetricPair {
     pub simulator: MetricRecord,
 }
 
+/// The training objective of one side term by term, joules: means over all frames, the
+/// dynamic terms counting 0 on the first two (no history), so the terms sum to that side's
+/// `loss` in [`MetricPair`]. Each side is scored from its own previous frames.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ObjectiveTerms {
+    /// The static terms (in-plane, bending, collision, gravity).
+    #[serde(flatten)]
+    pub fixed: StaticTerms,
+    /// Inertia.
+    pub inertia_j: f64,
+    /// Friction.
+    pub friction_j: f64,
+}
+
+impl ObjectiveTerms {
+    /// The sum of the terms: the training objective (pinning left out).
+    pub fn total(&self) -> f64 {
+        self.fixed.total() + self.inertia_j + self.friction_j
+    }
+
+    /// Each term with its row label.
+    pub fn named(&self) -> [(&'static str, f64); 6] {
+        [
+            ("objective: in-plane, J", self.fixed.cloth_j),
+            ("objective: bending, J", self.fixed.bending_j),
+            ("objective: collision, J", self.fixed.collision_j),
+            ("objective: gravity, J", self.fixed.gravity_j),
+            ("objective: inertia, J", self.inertia_j),
+            ("objective: friction, J", self.friction_j),
+        ]
+    }
+
+    /// Mean over `frames` of each term.
+    fn mean_of(frames: &[ClothMetrics]) -> Self {
+        let n = frames.len().max(1) as f64;
+        let mut sum = Self::default();
+        for m in frames {
+            let t = m.static_terms.unwrap_or_default();
+            sum.fixed.cloth_j += t.cloth_j / n;
+            sum.fixed.bending_j += t.bending_j / n;
+            sum.fixed.collision_j += t.collision_j / n;
+            sum.fixed.gravity_j += t.gravity_j / n;
+            sum.inertia_j += m.inertia_j.unwrap_or(0.0) / n;
+            sum.friction_j += m.friction_j.unwrap_or(0.0) / n;
+        }
+        sum
+    }
+}
+
+/// The training objective of both sides, term by term.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ObjectivePair {
+    /// The network.
+    pub network: ObjectiveTerms,
+    /// The simulator.
+    pub simulator: ObjectiveTerms,
+}
+
 /// Where the reference came from.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ReferenceInfo {
@@ -258,6 +317,10 @@ pub struct MotionComparison {
     pub measures: MotionMeasures,
     /// The paper's metrics of both sides.
     pub metrics: MetricPair,
+    /// The training objective of both sides, term by term (absent in records made before
+    /// it existed: zeros).
+    #[serde(default)]
+    pub objective: ObjectivePair,
     /// The reference simulation.
     pub reference: ReferenceInfo,
 }
@@ -293,7 +356,7 @@ pub fn sequence_mean_metrics(
     bodies: Option<&[Arc<PosedBody>]>,
     fps: f32,
     cloth_model: neural_cloth_physics::ClothModel,
-) -> Result<MetricRecord, TrainError> {
+) -> Result<(MetricRecord, ObjectiveTerms), TrainError> {
     let per_frame = sequence_metrics(terms, frames, bodies, 1.0 / fps)?;
     let records: Vec<MetricRecord> = per_frame
         .iter()
@@ -307,7 +370,7 @@ pub fn sequence_mean_metrics(
     let mut mean = MetricRecord::mean(&records);
     let with_inertia: Vec<f64> = per_frame.iter().filter_map(|m| m.inertia_j).collect();
     mean.inertia = with_inertia.iter().sum::<f64>() / with_inertia.len().max(1) as f64;
-    Ok(mean)
+    Ok((mean, ObjectiveTerms::mean_of(&per_frame)))
 }
 
 /// The motions to compare: the one named, or every motion of the validation split.
@@ -478,10 +541,10 @@ fn compare_motion(
     measures.drift = drift;
     measures.one_step = checked;
     let model = scene.fabric.cloth_model;
-    let mut network_metrics =
+    let (mut network_metrics, network_objective) =
         sequence_mean_metrics(terms, &network, bodies.as_deref(), fps, model)?;
     network_metrics.step = trained.step;
-    let simulator_metrics =
+    let (simulator_metrics, simulator_objective) =
         sequence_mean_metrics(terms, &reference.dynamic, bodies.as_deref(), fps, model)?;
     say(ComparePhase::Metrics, 1, 1);
     Ok(MotionComparison {
@@ -490,6 +553,10 @@ fn compare_motion(
         metrics: MetricPair {
             network: network_metrics,
             simulator: simulator_metrics,
+        },
+        objective: ObjectivePair {
+            network: network_objective,
+            simulator: simulator_objective,
         },
         reference: ReferenceInfo {
             path: reference.path,

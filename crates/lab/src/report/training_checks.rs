@@ -328,6 +328,7 @@ mod tests {
                     ..Default::default()
                 },
                 metrics: MetricPair::default(),
+                objective: Default::default(),
                 reference: ReferenceInfo::default(),
             },
             fitted_to_simulator: false,

@@ -173,6 +173,12 @@ impl MotionComparison {
         if net.friction != 0.0 || sim.friction != 0.0 {
             push("friction", net.friction, sim.friction, 6);
         }
+        let (net, sim) = (&self.objective.network, &self.objective.simulator);
+        if net.total() != 0.0 || sim.total() != 0.0 {
+            for ((label, network), (_, simulator)) in net.named().into_iter().zip(sim.named()) {
+                push(label, network, simulator, 6);
+            }
+        }
         rows
     }
 }
@@ -181,6 +187,32 @@ impl MotionComparison {
 mod tests {
     use super::super::measure::{Amplitude, AmplitudeStats, DistanceStats};
     use super::*;
+
+    #[test]
+    fn objective_rows_only_when_the_objective_was_split() {
+        let mut c = MotionComparison {
+            name: "spin".into(),
+            measures: MotionMeasures::default(),
+            metrics: Default::default(),
+            objective: Default::default(),
+            reference: Default::default(),
+        };
+        let plain = c.metric_rows().len();
+        c.objective.simulator.fixed.collision_j = 0.0166;
+        c.objective.network.inertia_j = 0.0245;
+        let rows = c.metric_rows();
+        assert_eq!(rows.len(), plain + 6, "one row per term");
+        let collision = rows
+            .iter()
+            .find(|r| r.label == "objective: collision, J")
+            .unwrap();
+        assert_eq!((collision.network, collision.simulator), (0.0, 0.0166));
+        let inertia = rows
+            .iter()
+            .find(|r| r.label == "objective: inertia, J")
+            .unwrap();
+        assert_eq!((inertia.network, inertia.simulator), (0.0245, 0.0));
+    }
 
     #[test]
     fn rows_follow_what_was_measured() {
