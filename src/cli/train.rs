@@ -184,6 +184,11 @@ pub struct TrainArgs {
     /// are not simulated) (docs/TRAINING.md round 18)
     #[arg(long, value_name = "DIR")]
     pub fit_reference: Option<PathBuf>,
+    /// With --fit-reference: also descend the physics loss at this weight (0-100; default 0,
+    /// the fit alone), so the fitted network stays a garment physics accepts (a diagnostic;
+    /// docs/TRAINING.md round 19)
+    #[arg(long, value_name = "WEIGHT", requires = "fit_reference")]
+    pub fit_physics: Option<f64>,
     /// How the inertia term treats the network's two previous frames: `ours` (default: held
     /// constant, the paper's) or `snug` (gradients flow into them too, SNUG's; the paper's
     /// ablation, docs/REPORT.md 4.2; see docs/TRAINING.md round 17)

@@ -112,6 +112,9 @@ pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig 
         train.fit_reference = Some(dir.clone());
         train.mirror_poses = false;
     }
+    if let Some(weight) = args.fit_physics {
+        train.fit_physics_weight = weight;
+    }
     if let Some(inertia) = args.inertia {
         train.inertia_mode = inertia.into();
     }

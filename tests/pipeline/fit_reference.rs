@@ -33,7 +33,8 @@ fn setup(dir: &Path, train: TrainConfig) -> TrainSetup {
 /// Issue 11 round 18: with `fit_reference` the network is fitted to the frames of the given
 /// caches (its step loss, the fit's distance, falls by more than half within 60 steps), a
 /// folder that lacks a training motion's frames is refused before the first step, and the
-/// still and mirrored windows that have no frames are refused by the configuration.
+/// still and mirrored windows that have no frames are refused by the configuration; with
+/// `fit_physics_weight` the physics loss is descended too.
 #[test]
 fn fitting_to_reference_frames_lowers_the_distance_to_them() {
     let dir = tempfile::tempdir().unwrap();
@@ -87,6 +88,20 @@ fn fitting_to_reference_frames_lowers_the_distance_to_them() {
         .collect();
     let (first, last) = (losses[0], losses[55..].iter().sum::<f64>() / 5.0);
     assert!(last < 0.5 * first, "fit loss {first} -> {last}: {losses:?}");
+    // With the physics loss added (round 19), the first step scores the same fit from the
+    // same network, but its update differs: the second step's fit is another.
+    let two_steps = |name: &str, weight: f64| {
+        let config = TrainConfig {
+            fit_physics_weight: weight,
+            ..fit.clone()
+        };
+        let (mut s, _) = prepare(setup(&dir.path().join(name), config)).unwrap();
+        [s.step().unwrap().loss, s.step().unwrap().loss]
+    };
+    let alone = two_steps("d", 0.0);
+    let with_physics = two_steps("e", 1.0);
+    assert_eq!(alone[0], with_physics[0]);
+    assert_ne!(alone[1], with_physics[1]);
     // Still windows have no simulated frames.
     let still = TrainConfig {
         still_fraction: 0.25,

@@ -413,15 +413,14 @@ impl Session for NeuralSession {
             friction,
             mut loss,
         } = self.step_losses(&x_net, &x, filter.is_some(), &batch, &blended, b - augment)?;
-        let grads = match (filter, self.reference.is_some()) {
-            // Fitting to reference frames: the step's loss is the fit's.
-            (_, true) => {
-                let fit = self.reference_loss(&x_net, &batch)?;
-                loss = fit.clone().into_scalar::<f64>();
-                fit.backward()
-            }
-            (None, false) => total.backward(),
-            (Some(filter), false) => {
+        let physics_weight = match self.reference {
+            Some(_) => self.config.fit_physics_weight,
+            None => 1.0,
+        };
+        let physics = match filter {
+            _ if physics_weight == 0.0 => None,
+            None => Some(total),
+            Some(filter) => {
                 // Rows of `x` are sample-major (`[B, K]`); still windows come first.
                 let plain_rows = if self.config.precondition_moving_only {
                     still * predicted
@@ -442,9 +441,24 @@ impl Session for NeuralSession {
                     adjoint: adjoint.as_deref().filter(|_| dynamics),
                     samples: still..b - augment,
                 };
-                filtered_surrogate(&filter, &x_net, &x, total, plain_rows, plain, history)?
-                    .backward()
+                Some(filtered_surrogate(
+                    &filter, &x_net, &x, total, plain_rows, plain, history,
+                )?)
             }
+        };
+        let grads = match (physics, self.reference.is_some()) {
+            // Fitting to reference frames: the step's loss is the fit's, plus the physics
+            // loss at its weight when one is set.
+            (physics, true) => {
+                let fit = self.reference_loss(&x_net, &batch)?;
+                loss = fit.clone().into_scalar::<f64>();
+                match physics {
+                    Some(p) => (fit + p.mul_scalar(physics_weight)).backward(),
+                    None => fit.backward(),
+                }
+            }
+            (Some(physics), false) => physics.backward(),
+            (None, false) => return Err(TrainError::Data("no loss to descend".into())),
         };
         let grads = GradientsParams::from_grads(grads, &self.model);
         self.optim.step(
