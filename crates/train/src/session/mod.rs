@@ -31,13 +31,13 @@ use neural_cloth_physics::{
 mod fit;
 mod forward;
 mod step_losses;
-use step_losses::StepLosses;
+use step_losses::{Descent, StepLosses};
 
 use super::TrainError;
 use super::adam::TrainOptimiser;
 use super::config::{InertiaMode, TrainConfig};
 use super::data::{Batch, Dataset};
-use super::filter::{FilterCache, HistoryTerms, filtered_surrogate};
+use super::filter::FilterCache;
 use super::fit_reference::FitReference;
 use super::handle::Session;
 use super::metrics::{MetricHistory, MetricRecord};
@@ -413,53 +413,14 @@ impl Session for NeuralSession {
             friction,
             mut loss,
         } = self.step_losses(&x_net, &x, filter.is_some(), &batch, &blended, b - augment)?;
-        let physics_weight = match self.reference {
-            Some(_) => self.config.fit_physics_weight,
-            None => 1.0,
+        let losses = Descent {
+            total,
+            plain,
+            still,
+            moving_end: b - augment,
         };
-        let physics = match filter {
-            _ if physics_weight == 0.0 => None,
-            None => Some(total),
-            Some(filter) => {
-                // Rows of `x` are sample-major (`[B, K]`); still windows come first.
-                let plain_rows = if self.config.precondition_moving_only {
-                    still * predicted
-                } else {
-                    0
-                };
-                // The history terms act on the moving windows with dynamics: after the
-                // still ones, before the augmented (quasi-static) ones.
-                let propagation =
-                    self.filter
-                        .propagation(&self.config, &self.terms, self.dt_secs())?;
-                let adjoint = self
-                    .filter
-                    .adjoint(&self.config, &self.terms, self.dt_secs())?;
-                let dynamics = self.terms.effects().dynamics;
-                let history = HistoryTerms {
-                    propagation: propagation.as_deref().filter(|_| dynamics),
-                    adjoint: adjoint.as_deref().filter(|_| dynamics),
-                    samples: still..b - augment,
-                };
-                Some(filtered_surrogate(
-                    &filter, &x_net, &x, total, plain_rows, plain, history,
-                )?)
-            }
-        };
-        let grads = match (physics, self.reference.is_some()) {
-            // Fitting to reference frames: the step's loss is the fit's, plus the physics
-            // loss at its weight when one is set.
-            (physics, true) => {
-                let fit = self.reference_loss(&x_net, &batch)?;
-                loss = fit.clone().into_scalar::<f64>();
-                match physics {
-                    Some(p) => (fit + p.mul_scalar(physics_weight)).backward(),
-                    None => fit.backward(),
-                }
-            }
-            (Some(physics), false) => physics.backward(),
-            (None, false) => return Err(TrainError::Data("no loss to descend".into())),
-        };
+        let grads =
+            self.step_gradients(filter.as_deref(), &x_net, &x, losses, &batch, &mut loss)?;
         let grads = GradientsParams::from_grads(grads, &self.model);
         self.optim.step(
             self.learning_rate * self.schedule_factor,

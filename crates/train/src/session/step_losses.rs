@@ -2,12 +2,26 @@
 //! from the network's own history, on the posed frames (or on detached copies of them when
 //! the gradient filter acts on them).
 
+use burn::tensor::Gradients;
 use burn::tensor::Tensor;
-use neural_cloth_physics::{Contacts, FrictionContacts};
+use neural_cloth_physics::{Contacts, FrictionContacts, GradientFilter};
 
 use super::{NeuralSession, stack_frames};
 use crate::TrainError;
 use crate::data::Batch;
+use crate::filter::{HistoryTerms, filtered_surrogate};
+
+/// What a step descends: its physics losses and which samples are which.
+pub(super) struct Descent {
+    /// The summed losses ([`StepLosses::total`]).
+    pub total: Tensor<1>,
+    /// The unfiltered static losses ([`StepLosses::plain`]).
+    pub plain: Option<(Tensor<4>, Tensor<1>)>,
+    /// Still windows, the batch's first samples.
+    pub still: usize,
+    /// End of the moving windows (the augmented ones follow).
+    pub moving_end: usize,
+}
 
 impl NeuralSession {
     /// The step's losses on the posed frames `x` (`[B, K, V, 3]`; a detached copy of `x_net`
@@ -62,6 +76,69 @@ impl NeuralSession {
             contacts,
             friction,
             loss,
+        })
+    }
+}
+
+impl NeuralSession {
+    /// The gradients of a step: the physics loss (through the gradient `filter` when one acts;
+    /// rows of `x` are sample-major, still windows first), or when fitting to reference
+    /// frames the fit plus the physics loss at [`crate::TrainConfig::fit_physics_weight`], in
+    /// which case `loss` becomes the fit's.
+    pub(super) fn step_gradients(
+        &mut self,
+        filter: Option<&GradientFilter>,
+        x_net: &Tensor<4>,
+        x: &Tensor<4>,
+        losses: Descent,
+        batch: &Batch,
+        loss: &mut f64,
+    ) -> Result<Gradients, TrainError> {
+        let weight = match self.reference {
+            Some(_) => self.config.fit_physics_weight,
+            None => 1.0,
+        };
+        let physics = match filter {
+            _ if weight == 0.0 => None,
+            None => Some(losses.total),
+            Some(filter) => {
+                let plain_rows = if self.config.precondition_moving_only {
+                    losses.still * batch.predicted
+                } else {
+                    0
+                };
+                // The history terms act on the moving windows with dynamics: after the
+                // still ones, before the augmented (quasi-static) ones.
+                let dt = self.dt_secs();
+                let propagation = self.filter.propagation(&self.config, &self.terms, dt)?;
+                let adjoint = self.filter.adjoint(&self.config, &self.terms, dt)?;
+                let dynamics = self.terms.effects().dynamics;
+                let history = HistoryTerms {
+                    propagation: propagation.as_deref().filter(|_| dynamics),
+                    adjoint: adjoint.as_deref().filter(|_| dynamics),
+                    samples: losses.still..losses.moving_end,
+                };
+                Some(filtered_surrogate(
+                    filter,
+                    x_net,
+                    x,
+                    losses.total,
+                    plain_rows,
+                    losses.plain,
+                    history,
+                )?)
+            }
+        };
+        if self.reference.is_none() {
+            return physics
+                .map(|p| p.backward())
+                .ok_or_else(|| TrainError::Data("no loss to descend".into()));
+        }
+        let fit = self.reference_loss(x_net, batch)?;
+        *loss = fit.clone().into_scalar::<f64>();
+        Ok(match physics {
+            Some(p) => (fit + p.mul_scalar(weight)).backward(),
+            None => fit.backward(),
         })
     }
 }
