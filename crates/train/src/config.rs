@@ -236,7 +236,8 @@ pub struct TrainConfig {
     /// their natural frequency (the swing and the slip) once the network's frames share
     /// parameters; this one is not (a toy shows both, docs/TRAINING.md round 18). Measured
     /// there on the t-shirt (seed 43, 1100 steps, β'' = 1): no closer to the simulator
-    /// (held-out spin 31.1 against 30.0 mm, idle 4.5 against 2.7, less swing); experimental.
+    /// (held-out spin 31.1 against 30.0 mm, idle 4.5 against 2.7, less swing), nor from a
+    /// start near the simulator (round 19: twirl 19.6 against 19.1 mm); experimental.
     /// Needs the gradient filter on (`precondition_stiffness > 0`).
     pub history_adjoint: f64,
     /// A diagnostic, not the method (default None): a folder of our own simulator's frames
