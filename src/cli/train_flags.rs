@@ -7,6 +7,16 @@ use neural_cloth::train::{BackendKind, TrainConfig};
 
 use super::train::{Backend, TrainArgs};
 
+/// `target = value` for each flag given (`Some(value)`); flags not given leave their
+/// target as it was.
+macro_rules! override_from {
+    ($($flag:expr => $target:expr),* $(,)?) => {
+        $(if let Some(value) = $flag {
+            $target = value;
+        })*
+    };
+}
+
 /// Applies every training and network flag of `args` to `train`, and returns the network
 /// settings with theirs (the defaults otherwise).
 pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig {
@@ -16,53 +26,43 @@ pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig 
         Some(Backend::Wgpu) => train.backend = BackendKind::Wgpu,
         None => {}
     }
-    if let Some(n) = args.checkpoint_every {
-        train.checkpoint_every = n;
-    }
-    if let Some(n) = args.validate_every {
-        train.validate_every = n;
-    }
-    if let Some(b) = args.batch {
-        train.batch_size = b;
-    }
-    if let Some(w) = args.window {
-        train.window_secs = w;
-    }
-    if let Some(secs) = args.gru_burn_in {
-        train.gru_burn_in_secs = secs;
+    override_from! {
+        args.checkpoint_every => train.checkpoint_every,
+        args.validate_every => train.validate_every,
+        args.batch => train.batch_size,
+        args.window => train.window_secs,
+        args.gru_burn_in => train.gru_burn_in_secs,
+        args.seed => train.seed,
+        args.learning_rate => train.learning_rate,
+        args.basis_lr_scale => model.basis_lr_scale,
+        args.basis_bias_lr_scale => model.basis_bias_lr_scale,
+        args.basis_init_gain => model.basis_init_gain,
+        args.predrape_secs => train.predrape_secs,
+        args.dynamic_basis => model.dynamic_basis,
+        args.dynamic_basis_lr_scale => model.dynamic_basis_lr_scale,
+        args.augmentation => train.augmentation_fraction,
+        args.still_fraction => train.still_fraction,
+        args.lr_decay_fraction => train.lr_decay_fraction,
+        args.loss_frames => train.loss_frames,
+        args.warmup_steps => train.warmup_steps,
+        args.precondition => train.precondition_stiffness,
+        args.precondition_moving_only => train.precondition_moving_only,
+        args.precondition_dynamic_only => train.precondition_dynamic_only,
+        args.weight_average => train.weight_average,
+        args.propagate_history => train.history_propagation,
+        args.history_adjoint => train.history_adjoint,
+        args.fit_physics => train.fit_physics_weight,
+        args.lr_final_factor => train.lr_final_factor,
+        args.dead_limit => train.dead_limit_pct,
     }
     if args.gru_burn_in_random {
         train.gru_burn_in_random = true;
     }
-    if let Some(s) = args.seed {
-        train.seed = s;
-    }
-    if let Some(lr) = args.learning_rate {
-        train.learning_rate = lr;
-    }
-    if let Some(s) = args.basis_lr_scale {
-        model.basis_lr_scale = s;
-    }
-    if let Some(s) = args.basis_bias_lr_scale {
-        model.basis_bias_lr_scale = s;
-    }
-    if let Some(g) = args.basis_init_gain {
-        model.basis_init_gain = g;
-    }
     if let Some(widths) = &args.static_hidden {
         model.static_hidden = widths.clone();
     }
-    if let Some(p) = args.predrape_secs {
-        train.predrape_secs = p;
-    }
     model.basis_bias = !args.no_basis_bias;
     model.normalise_dynamic_input = args.scale_dynamic_input;
-    if let Some(on) = args.dynamic_basis {
-        model.dynamic_basis = on;
-    }
-    if let Some(s) = args.dynamic_basis_lr_scale {
-        model.dynamic_basis_lr_scale = s;
-    }
     if args.no_centre_init {
         train.centre_init = false;
     }
@@ -72,48 +72,12 @@ pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig 
     if args.keep_posed_bodies {
         train.keep_posed_bodies = true;
     }
-    if let Some(f) = args.augmentation {
-        train.augmentation_fraction = f;
-    }
-    if let Some(f) = args.still_fraction {
-        train.still_fraction = f;
-    }
-    if let Some(f) = args.lr_decay_fraction {
-        train.lr_decay_fraction = f;
-    }
-    if let Some(k) = args.loss_frames {
-        train.loss_frames = k;
-    }
-    if let Some(n) = args.warmup_steps {
-        train.warmup_steps = n;
-    }
-    if let Some(b) = args.precondition {
-        train.precondition_stiffness = b;
-    }
-    if let Some(moving_only) = args.precondition_moving_only {
-        train.precondition_moving_only = moving_only;
-    }
-    if let Some(dynamic_only) = args.precondition_dynamic_only {
-        train.precondition_dynamic_only = dynamic_only;
-    }
     if let Some(which) = args.basis_row_norm {
         train.basis_row_norm = which.into();
-    }
-    if let Some(decay) = args.weight_average {
-        train.weight_average = decay;
-    }
-    if let Some(beta) = args.propagate_history {
-        train.history_propagation = beta;
-    }
-    if let Some(beta) = args.history_adjoint {
-        train.history_adjoint = beta;
     }
     if let Some(dir) = &args.fit_reference {
         train.fit_reference = Some(dir.clone());
         train.mirror_poses = false;
-    }
-    if let Some(weight) = args.fit_physics {
-        train.fit_physics_weight = weight;
     }
     if let Some(inertia) = args.inertia {
         train.inertia_mode = inertia.into();
@@ -121,14 +85,142 @@ pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig 
     if let Some(b) = args.precondition_final {
         train.precondition_final_stiffness = Some(b);
     }
-    if let Some(f) = args.lr_final_factor {
-        train.lr_final_factor = f;
-    }
-    if let Some(d) = args.dead_limit {
-        train.dead_limit_pct = d;
-    }
     if args.skip_fit_check {
         train.fit_check = false;
     }
     model
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    /// The `train` arguments alone, parsed as a command line.
+    #[derive(Parser)]
+    struct Line {
+        #[command(flatten)]
+        args: TrainArgs,
+    }
+
+    #[test]
+    fn every_value_flag_lands_in_its_own_field() {
+        let line = Line::try_parse_from([
+            "train",
+            "--checkpoint-every",
+            "7",
+            "--validate-every",
+            "9",
+            "--batch",
+            "5",
+            "--window",
+            "0.75",
+            "--gru-burn-in",
+            "0.25",
+            "--seed",
+            "11",
+            "--learning-rate",
+            "0.002",
+            "--basis-lr-scale",
+            "0.5",
+            "--basis-bias-lr-scale",
+            "0.25",
+            "--basis-init-gain",
+            "1.5",
+            "--predrape-secs",
+            "0.5",
+            "--dynamic-basis",
+            "false",
+            "--dynamic-basis-lr-scale",
+            "0.125",
+            "--augmentation",
+            "0.1",
+            "--still-fraction",
+            "0",
+            "--lr-decay-fraction",
+            "0.3",
+            "--loss-frames",
+            "3",
+            "--warmup-steps",
+            "13",
+            "--precondition",
+            "0.2",
+            "--precondition-moving-only",
+            "false",
+            "--precondition-dynamic-only",
+            "--weight-average",
+            "0.99",
+            "--propagate-history",
+            "0.4",
+            "--history-adjoint",
+            "0.6",
+            "--fit-reference",
+            "refs",
+            "--fit-physics",
+            "2",
+            "--lr-final-factor",
+            "0.05",
+            "--dead-limit",
+            "80",
+        ])
+        .unwrap();
+        let mut train = TrainConfig::default();
+        let model = apply_flags(&line.args, &mut train);
+        assert_eq!(
+            (
+                train.checkpoint_every,
+                train.validate_every,
+                train.batch_size
+            ),
+            (7, 9, 5)
+        );
+        assert_eq!((train.window_secs, train.gru_burn_in_secs), (0.75, 0.25));
+        assert_eq!((train.seed, train.learning_rate), (11, 0.002));
+        assert_eq!(
+            (
+                model.basis_lr_scale,
+                model.basis_bias_lr_scale,
+                model.basis_init_gain
+            ),
+            (0.5, 0.25, 1.5)
+        );
+        assert_eq!(train.predrape_secs, 0.5);
+        assert!(!model.dynamic_basis);
+        assert_eq!(model.dynamic_basis_lr_scale, 0.125);
+        assert_eq!(
+            (train.augmentation_fraction, train.still_fraction),
+            (0.1, 0.0)
+        );
+        assert_eq!(
+            (
+                train.lr_decay_fraction,
+                train.loss_frames,
+                train.warmup_steps
+            ),
+            (0.3, 3, 13)
+        );
+        assert_eq!(train.precondition_stiffness, 0.2);
+        assert!(!train.precondition_moving_only && train.precondition_dynamic_only);
+        assert_eq!(
+            (
+                train.weight_average,
+                train.history_propagation,
+                train.history_adjoint
+            ),
+            (0.99, 0.4, 0.6)
+        );
+        assert_eq!(
+            train.fit_reference.as_deref(),
+            Some(std::path::Path::new("refs"))
+        );
+        assert!(!train.mirror_poses, "a fit has no mirrored frames");
+        assert_eq!(train.fit_physics_weight, 2.0);
+        assert_eq!((train.lr_final_factor, train.dead_limit_pct), (0.05, 80.0));
+        // Flags not given leave the defaults.
+        let bare = Line::try_parse_from(["train"]).unwrap();
+        let mut untouched = TrainConfig::default();
+        apply_flags(&bare.args, &mut untouched);
+        assert_eq!(untouched, TrainConfig::default());
+    }
 }
