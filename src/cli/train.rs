@@ -189,6 +189,15 @@ pub struct TrainArgs {
     /// docs/TRAINING.md round 19)
     #[arg(long, value_name = "WEIGHT", requires = "fit_reference")]
     pub fit_physics: Option<f64>,
+    /// Curriculum: the inertia target at the start of the run projects the network's own
+    /// last velocity this much further (α in [0, 1]; default 0 = off), a negative damping
+    /// that falls linearly to 0 over --momentum-boost-steps (experimental; docs/TRAINING.md
+    /// round 20)
+    #[arg(long, value_name = "ALPHA", requires = "momentum_boost_steps")]
+    pub momentum_boost: Option<f64>,
+    /// Steps over which --momentum-boost falls to 0
+    #[arg(long, value_name = "STEPS")]
+    pub momentum_boost_steps: Option<u64>,
     /// How the inertia term treats the network's two previous frames: `ours` (default: held
     /// constant, the paper's) or `snug` (gradients flow into them too, SNUG's; the paper's
     /// ablation, docs/REPORT.md 4.2; see docs/TRAINING.md round 17)

@@ -52,6 +52,8 @@ pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig 
         args.propagate_history => train.history_propagation,
         args.history_adjoint => train.history_adjoint,
         args.fit_physics => train.fit_physics_weight,
+        args.momentum_boost => train.momentum_boost,
+        args.momentum_boost_steps => train.momentum_boost_steps,
         args.lr_final_factor => train.lr_final_factor,
         args.dead_limit => train.dead_limit_pct,
     }
@@ -163,6 +165,10 @@ mod tests {
             "0.05",
             "--dead-limit",
             "80",
+            "--momentum-boost",
+            "0.3",
+            "--momentum-boost-steps",
+            "17",
         ])
         .unwrap();
         let mut train = TrainConfig::default();
@@ -217,6 +223,10 @@ mod tests {
         assert!(!train.mirror_poses, "a fit has no mirrored frames");
         assert_eq!(train.fit_physics_weight, 2.0);
         assert_eq!((train.lr_final_factor, train.dead_limit_pct), (0.05, 80.0));
+        assert_eq!(
+            (train.momentum_boost, train.momentum_boost_steps),
+            (0.3, 17)
+        );
         // Flags not given leave the defaults.
         let bare = Line::try_parse_from(["train"]).unwrap();
         let mut untouched = TrainConfig::default();

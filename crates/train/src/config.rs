@@ -255,6 +255,18 @@ pub struct TrainConfig {
     /// while staying a garment physics accepts (the fit alone leaves the t-shirt strained
     /// 12 %, docs/TRAINING.md round 19). A diagnostic, as the fit is; needs `fit_reference`.
     pub fit_physics_weight: f64,
+    /// Momentum boost α of the inertia target at the start of a run, in [0, 1] (0, the
+    /// default: off): each loss frame's inertia projects `x_{t-1} + (1 + α)(x_{t-1} - x_{t-2})`
+    /// instead of `2x_{t-1} - x_{t-2}`, a negative damping that lets a swing grow from the
+    /// network's own (damped) history, as a curriculum towards the swinging garment; α falls
+    /// linearly to 0 over [`TrainConfig::momentum_boost_steps`] and the paper's loss takes over.
+    /// Validation and metrics keep the plain projection. Experimental (docs/TRAINING.md
+    /// round 20).
+    pub momentum_boost: f64,
+    /// Steps over which [`TrainConfig::momentum_boost`] falls linearly to 0 (counted from the
+    /// run's first step, so a resume goes on along the same schedule); 1..=1000000 when the
+    /// boost is on, default 0.
+    pub momentum_boost_steps: u64,
 }
 
 impl Default for TrainConfig {
@@ -298,6 +310,8 @@ impl Default for TrainConfig {
             history_adjoint: 0.0,
             fit_reference: None,
             fit_physics_weight: 0.0,
+            momentum_boost: 0.0,
+            momentum_boost_steps: 0,
         }
     }
 }
@@ -320,6 +334,15 @@ pub const TRAINING_FPS_RANGE: std::ops::RangeInclusive<f32> = 5.0..=240.0;
 const TRAINING_FPS_RANGE_TEXT: &str = "5..=240";
 
 impl TrainConfig {
+    /// The momentum boost α before step `step` (0-based): [`Self::momentum_boost`] falling
+    /// linearly to 0 at [`Self::momentum_boost_steps`], 0 after (and when off).
+    pub fn momentum_boost_at(&self, step: u64) -> f64 {
+        if self.momentum_boost == 0.0 || step >= self.momentum_boost_steps {
+            return 0.0;
+        }
+        self.momentum_boost * (1.0 - step as f64 / self.momentum_boost_steps as f64)
+    }
+
     /// Frames per training window at `fps` (the scene's training rate, frames per second):
     /// `ceil(window_secs * fps) + 3` (the last 3 are predicted).
     pub fn window_frames(&self, fps: f32) -> usize {
@@ -517,6 +540,18 @@ impl TrainConfig {
             "fit_physics_weight",
             self.fit_physics_weight,
             "0 unless fitting to reference frames (fit_reference)",
+        )?;
+        check(
+            (0.0..=1.0).contains(&self.momentum_boost),
+            "momentum_boost",
+            self.momentum_boost,
+            "[0, 1]",
+        )?;
+        check(
+            self.momentum_boost == 0.0 || (1..=1_000_000).contains(&self.momentum_boost_steps),
+            "momentum_boost_steps",
+            self.momentum_boost_steps,
+            "1..=1000000 when the momentum boost is on",
         )?;
         if self.fit_reference.is_some() {
             check(
@@ -737,6 +772,19 @@ mod tests {
             ..mirrored
         };
         assert!(fitted.validate(30.0).is_ok());
+        // The momentum boost: in [0, 1], with a schedule length.
+        for (boost, steps, field) in [
+            (-0.1, 100, "momentum_boost"),
+            (1.5, 100, "momentum_boost"),
+            (0.2, 0, "momentum_boost_steps"),
+        ] {
+            let bad = TrainConfig {
+                momentum_boost: boost,
+                momentum_boost_steps: steps,
+                ..Default::default()
+            };
+            assert_eq!(refused(bad), field);
+        }
         // The rate is the scene's: checked against the trainer's range by its own name.
         let e = TrainConfig::default().validate(2.0).unwrap_err();
         assert_eq!(e.field, "training_fps");
@@ -749,6 +797,21 @@ mod tests {
         };
         assert_eq!(short.validate(30.0).unwrap_err().field, "loss_frames");
         assert!(short.validate(60.0).is_ok());
+    }
+
+    #[test]
+    fn momentum_boost_falls_linearly_to_zero() {
+        let c = TrainConfig {
+            momentum_boost: 0.2,
+            momentum_boost_steps: 100,
+            ..Default::default()
+        };
+        assert!(c.validate(30.0).is_ok());
+        assert_eq!(c.momentum_boost_at(0), 0.2);
+        assert!((c.momentum_boost_at(50) - 0.1).abs() < 1e-12);
+        assert_eq!(c.momentum_boost_at(100), 0.0);
+        assert_eq!(c.momentum_boost_at(5000), 0.0);
+        assert_eq!(TrainConfig::default().momentum_boost_at(0), 0.0);
     }
 
     #[test]

@@ -75,6 +75,11 @@ impl FilterCache {
         built_once(&mut self.adjoint, config.history_adjoint, terms, dt_secs)
     }
 
+    /// Steps taken so far in the run (from its first step, resumes included).
+    pub fn steps_taken(&self) -> u64 {
+        self.steps_taken
+    }
+
     /// Counts a step whose update was made.
     pub fn count_step(&mut self) {
         self.steps_taken += 1;

@@ -4,10 +4,25 @@ use neural_cloth_core::scene::config::{GarmentSource, SceneConfig};
 use neural_cloth_core::scene::procedural::build_builtin;
 use neural_cloth_model::{ClothNetConfig, DescriptorConfig};
 
+use burn::tensor::{Tensor, TensorData};
+
 use crate::{RunLocation, TrainConfig, TrainSetup, prepare};
 
 /// A session on a coarse default scene with a 0.5 s burn-in (15 frames at 30 fps).
 fn session(random: bool, dir: &std::path::Path) -> super::NeuralSession {
+    session_with(
+        TrainConfig {
+            gru_burn_in_secs: 0.5,
+            gru_burn_in_random: random,
+            ..Default::default()
+        },
+        dir,
+    )
+}
+
+/// A session on a coarse default scene (two motions, a 0.5 s window, no pre-drape) with
+/// `train`'s other settings.
+fn session_with(train: TrainConfig, dir: &std::path::Path) -> super::NeuralSession {
     let mut config = SceneConfig::default_scene();
     if let GarmentSource::Builtin { resolution, .. } = &mut config.garment {
         *resolution = 300;
@@ -18,10 +33,8 @@ fn session(random: bool, dir: &std::path::Path) -> super::NeuralSession {
         scene_config: config,
         train: TrainConfig {
             window_secs: 0.5,
-            gru_burn_in_secs: 0.5,
-            gru_burn_in_random: random,
             predrape_secs: 0.0,
-            ..Default::default()
+            ..train
         },
         model: ClothNetConfig {
             static_hidden: vec![16],
@@ -53,4 +66,53 @@ fn a_random_burn_in_draws_each_steps_length_up_to_the_whole() {
     );
     // Validation keeps the whole burn-in.
     assert_eq!(random.batch_frames(), window + 15);
+}
+
+#[test]
+fn the_boosted_history_projects_the_last_velocity_further() {
+    let device = burn::tensor::Device::flex();
+    let t1 = Tensor::<3>::from_data(TensorData::new(vec![1.0f32, 2.0, 3.0], [1, 1, 3]), &device);
+    let t2 = Tensor::<3>::from_data(TensorData::new(vec![0.5f32, 2.0, 4.0], [1, 1, 3]), &device);
+    // 2 x1 - x2' = x1 + (1 + α)(x1 - x2) with α = 0.25.
+    let x2 = super::boosted_history(&t1, t2.clone(), 0.25);
+    let projected = (t1.clone().mul_scalar(2.0) - x2)
+        .into_data()
+        .to_vec::<f32>()
+        .unwrap();
+    let expected = [1.0 + 1.25 * 0.5, 2.0, 3.0 - 1.25];
+    for (p, e) in projected.iter().zip(expected) {
+        assert!((p - e).abs() < 1e-6, "{projected:?}");
+    }
+    let plain = super::boosted_history(&t1, t2.clone(), 0.0);
+    assert_eq!(plain.into_data(), t2.into_data());
+}
+
+#[test]
+fn the_momentum_boost_changes_the_inertia_loss_until_its_schedule_ends() {
+    let dir = tempfile::tempdir().unwrap();
+    let boosted = TrainConfig {
+        momentum_boost: 0.5,
+        momentum_boost_steps: 1,
+        ..Default::default()
+    };
+    let mut s = session_with(boosted, dir.path());
+    let windows = s.train.sample_windows(4, &mut s.rng);
+    let batch = s
+        .train
+        .batch_with_still(&windows, 0, s.batch_frames(), 3, &s.garment.skin);
+    let (x, _) = s.predict(&batch, 0, 0);
+    let x = x.detach();
+    let x_t = super::stack_frames(&x, 2, 3, 4);
+    let inertia = |s: &super::NeuralSession| {
+        let (terms, _) = s.dynamic_losses(&x, &x_t, &batch, None, 4).unwrap();
+        terms[0].clone().into_scalar::<f64>()
+    };
+    let first = inertia(&s);
+    s.filter.restore(1);
+    let after = inertia(&s);
+    s.config.momentum_boost = 0.0;
+    let plain = inertia(&s);
+    assert!(first.is_finite() && plain > 0.0);
+    assert_ne!(first, plain, "the boost acts on the first step's inertia");
+    assert_eq!(after, plain, "past its schedule the boost is off");
 }
