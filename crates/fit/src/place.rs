@@ -244,7 +244,13 @@ mod tests {
             scale_range: (0.5, 2.0),
             ..aligned_only()
         };
-        for (s, up_m, options) in [(0.9, -0.2, aligned_only()), (1.0, 0.3, wide)] {
+        // Within the default scale range as well as a wide one.
+        let cases = [
+            (0.9, -0.2, aligned_only()),
+            (1.0, 0.3, aligned_only()),
+            (1.0, 0.3, wide),
+        ];
+        for (s, up_m, options) in cases {
             let given = transformed(&skirt, s, 0.9, up_m);
             let fitted = fit(&avatar, &given, &options);
             let (lo, hi) = fitted.bounds().unwrap();
