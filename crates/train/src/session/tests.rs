@@ -77,7 +77,7 @@ fn the_boosted_history_projects_the_last_velocity_further() {
     let x2 = super::boosted_history(&t1, t2.clone(), 0.25);
     let projected = (t1.clone().mul_scalar(2.0) - x2)
         .into_data()
-        .to_vec::<f32>()
+        .try_to_vec::<f32>()
         .unwrap();
     let expected = [1.0 + 1.25 * 0.5, 2.0, 3.0 - 1.25];
     for (p, e) in projected.iter().zip(expected) {
