@@ -1360,6 +1360,41 @@ pinning = true
         };
         let third = compare(&trained, Some("walk"), &other, &mut |_| true).unwrap();
         assert!(!third.motions[0].reference.cached);
+        // The spread simulates the motion once more at twice the iterations (the dynamic
+        // simulation only), cached beside the reference.
+        let count = |options: &CompareOptions| {
+            let mut phases = (0, 0);
+            let report = compare(&trained, Some("walk"), options, &mut |p| {
+                phases.0 += usize::from(p.phase == ComparePhase::Simulating);
+                phases.1 += usize::from(p.phase == ComparePhase::SimulatingStatic);
+                true
+            })
+            .unwrap();
+            (report, phases)
+        };
+        let spread_options = CompareOptions {
+            spread: true,
+            ..quick()
+        };
+        let (with_spread, phases) = count(&spread_options);
+        assert_eq!(phases, (10, 0), "the finer simulation alone");
+        let spread = with_spread.motions[0].measures.spread.expect("asked for");
+        assert_eq!(spread.iterations, 16);
+        assert!(
+            spread.mean_mm.is_finite() && spread.p95_mm >= spread.mean_mm,
+            "{spread:?}"
+        );
+        assert!(first.motions[0].measures.spread.is_none());
+        let (_, again) = count(&spread_options);
+        assert_eq!(again, (0, 0), "the finer simulation is cached");
+        // A comparison at those iterations reuses it and solves only the quasi-static frames.
+        let finer = CompareOptions {
+            iterations: 16,
+            ..quick()
+        };
+        let (at_16, phases) = count(&finer);
+        assert_eq!(phases, (0, 10));
+        assert!(!at_16.motions[0].reference.cached);
         // Swap the garment in the run's scene: refused, naming the garment.
         let scene_toml = std::fs::read_to_string(run.join("scene.toml")).unwrap();
         std::fs::write(

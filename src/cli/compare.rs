@@ -43,6 +43,11 @@ pub struct CompareArgs {
     /// costs about one simulation of the motion).
     #[arg(long)]
     pub one_step: bool,
+    /// Also simulate each motion with twice the iterations and print how far the two
+    /// simulations are apart: the reference's own uncertainty, below which a distance to it
+    /// means little (costs about two more references; cached).
+    #[arg(long)]
+    pub spread: bool,
     /// Print the report as JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -65,6 +70,7 @@ pub fn run(args: CompareArgs) -> anyhow::Result<()> {
         use_cache: !args.no_cache,
         drift: !args.no_drift,
         one_step: args.one_step,
+        spread: args.spread,
         ..Default::default()
     };
     options.validate()?;
@@ -127,7 +133,8 @@ pub fn table(report: &CompareReport) -> String {
          network with its GRU state carried over the motion against the same network \
          restarted one training window (and burn-in) before each frame; one-step: each \
          network frame against one simulator step from the network's two previous frames \
-         (turn with body < 0: physics holds the garment further back)",
+         (turn with body < 0: physics holds the garment further back); reference spread: the \
+         reference against the same simulation at twice the iterations",
         o.still_speed_m_per_s, o.still_window_secs
     );
     for m in &report.motions {

@@ -19,6 +19,9 @@ pub struct SimCheck {
     /// Compare only the motion shown in the viewport (otherwise the validation motions);
     /// default false.
     pub shown_motion_only: bool,
+    /// Also simulate with twice the iterations and show how far the two references are
+    /// apart (the reference's own uncertainty); default false.
+    pub spread: bool,
     /// The running comparison and the last result (or the error that ended the last check).
     pub job: JobSlot<Option<CompareProgress>, CompareReport>,
 }
@@ -28,6 +31,7 @@ impl Default for SimCheck {
         Self {
             iterations: 200,
             shown_motion_only: false,
+            spread: false,
             job: JobSlot::default(),
         }
     }
@@ -92,6 +96,7 @@ impl SimCheck {
     ) -> Result<(), AppError> {
         let options = CompareOptions {
             iterations: self.iterations.clamp(1, 10_000),
+            spread: self.spread,
             ..Default::default()
         };
         self.job.start(

@@ -46,8 +46,9 @@ fn check_progress_ui(ui: &mut egui::Ui, check: &SimCheck) {
         .request_repaint_after(std::time::Duration::from_millis(250));
 }
 
-/// Iterations per frame, "only the shown motion" (`shown`: its name) and the start button,
-/// disabled with `unavailable` as its hover text. Returns whether the button was clicked.
+/// Iterations per frame, "only the shown motion" (`shown`: its name), the spread option and
+/// the start button, disabled with `unavailable` as its hover text. Returns whether the
+/// button was clicked.
 fn check_settings_ui(
     ui: &mut egui::Ui,
     check: &mut SimCheck,
@@ -68,6 +69,11 @@ fn check_settings_ui(
         egui::Checkbox::new(&mut check.shown_motion_only, label),
     )
     .on_hover_text("Otherwise: every motion of the scene's validation split");
+    ui.checkbox(&mut check.spread, "measure the reference's spread")
+        .on_hover_text(
+            "Also simulate with twice the iterations and show how far the two simulations \
+             are apart: a distance to the simulator means little below it",
+        );
     ui.add_enabled(
         unavailable.is_none(),
         egui::Button::new("Check against simulation"),

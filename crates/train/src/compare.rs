@@ -27,6 +27,8 @@
 //! - the **one-step check** ([`one_step`], on request): each network frame against one
 //!   simulator step from the network's own two previous frames, which says whether the
 //!   network's motion obeys the physics frame by frame, and which way physics pushes it;
+//! - the **reference spread** ([`reference_spread`], on request): the reference against the
+//!   same simulation at twice the iterations, the uncertainty of the reference itself;
 //! - the paper's §4.2 **metrics** of both sequences (as `eval`).
 //!
 //! The reference is simulated with the report's reference settings (200 L-BFGS iterations per
@@ -40,8 +42,9 @@ mod one_step;
 mod record;
 mod rigid;
 mod rows;
+mod spread;
 
-pub use cache::{REFERENCE_TOLERANCE, Reference, reference_dir, reference_for};
+pub use cache::{REFERENCE_TOLERANCE, Reference, reference_dir, reference_for, simulation_for};
 pub use drift::{StateDrift, drift_window_frames, state_drift};
 pub use measure::{
     Amplitude, AmplitudeStats, DistanceStats, HEM_BAND, HemComparison, HemPair, MotionMeasures,
@@ -52,6 +55,7 @@ pub use one_step::{OneStep, TURNING_DEG_PER_FRAME, one_step, turn_about_vertical
 pub use record::{TrainingCheck, append_checks, read_checks};
 pub use rigid::{RigidFit, RigidSplit, best_rigid_fit, rigid_split};
 pub use rows::{MeasureRow, MetricRow};
+pub use spread::{ReferenceSpread, reference_spread, spread_between};
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -97,6 +101,11 @@ pub struct CompareOptions {
     /// ([`one_step`]; at `w = 1` only; costs about one simulation of the motion); default
     /// false.
     pub one_step: bool,
+    /// Also simulate each motion with twice the iterations and report how far the two
+    /// simulations are apart ([`reference_spread`]: the reference's own uncertainty, below
+    /// which a network's distance to it means little; costs about two references more);
+    /// default false.
+    pub spread: bool,
 }
 
 impl Default for CompareOptions {
@@ -110,6 +119,7 @@ impl Default for CompareOptions {
             use_cache: true,
             drift: true,
             one_step: false,
+            spread: false,
         }
     }
 }
@@ -540,6 +550,16 @@ fn compare_motion(
     )?;
     measures.drift = drift;
     measures.one_step = checked;
+    measures.spread = match options.spread {
+        true => Some(reference_spread(
+            trained,
+            motion,
+            options,
+            &reference.dynamic,
+            say,
+        )?),
+        false => None,
+    };
     let model = scene.fabric.cloth_model;
     let (mut network_metrics, network_objective) =
         sequence_mean_metrics(terms, &network, bodies.as_deref(), fps, model)?;

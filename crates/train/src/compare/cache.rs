@@ -223,7 +223,7 @@ fn simulate_with(
 }
 
 /// The reference simulation and quasi-static solve of `motion` (resampled to the training
-/// rate), read from `RUN/reference/` when cached there, else simulated and cached.
+/// rate), each read from `RUN/reference/` when cached there, else simulated and cached.
 /// `progress(phase, done, total)` sees each simulated frame; returning false cancels.
 pub fn reference_for(
     trained: &TrainedModel,
@@ -231,6 +231,45 @@ pub fn reference_for(
     options: &CompareOptions,
     progress: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
 ) -> Result<Reference, TrainError> {
+    let started = Instant::now();
+    let (dynamic, path, dynamic_cached) =
+        cached_or_simulated(trained, motion, options, true, progress)?;
+    let (quasi_static, _, static_cached) =
+        cached_or_simulated(trained, motion, options, false, progress)?;
+    let cached = dynamic_cached && static_cached;
+    Ok(Reference {
+        dynamic,
+        quasi_static,
+        path,
+        cached,
+        simulate_secs: if cached {
+            0.0
+        } else {
+            started.elapsed().as_secs_f64()
+        },
+    })
+}
+
+/// The reference simulation of `motion` alone (no quasi-static solve), cached as
+/// [`reference_for`] caches it; with its file and whether it was read from the cache.
+pub fn simulation_for(
+    trained: &TrainedModel,
+    motion: &Motion,
+    options: &CompareOptions,
+    progress: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
+) -> Result<(Vec<Vec<Vec3>>, PathBuf, bool), TrainError> {
+    cached_or_simulated(trained, motion, options, true, progress)
+}
+
+/// The simulation (`dynamic`) or the quasi-static solve of `motion`: read from its cache file
+/// when it holds the motion's frames, else simulated and written there (with the key record).
+fn cached_or_simulated(
+    trained: &TrainedModel,
+    motion: &Motion,
+    options: &CompareOptions,
+    dynamic: bool,
+    progress: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
+) -> Result<(Vec<Vec<Vec3>>, PathBuf, bool), TrainError> {
     let record = key_record(trained, motion, options)?;
     let stem = format!(
         "{}-{}it-{}fps-{}",
@@ -241,60 +280,33 @@ pub fn reference_for(
     );
     let dir = reference_dir(&trained.run.root);
     let path = dir.join(format!("{stem}.pc2"));
-    let static_path = dir.join(format!("{stem}.static.pc2"));
+    let file = match dynamic {
+        true => path.clone(),
+        false => dir.join(format!("{stem}.static.pc2")),
+    };
     let (frames, vertices) = (motion.frames.len(), trained.scene.garment.vertex_count());
     if options.use_cache
-        && let (Some(dynamic), Some(quasi_static)) = (
-            read_cached(&path, frames, vertices),
-            read_cached(&static_path, frames, vertices),
-        )
+        && let Some(cached) = read_cached(&file, frames, vertices)
     {
-        return Ok(Reference {
-            dynamic,
-            quasi_static,
-            path,
-            cached: true,
-            simulate_secs: 0.0,
-        });
+        return Ok((cached, path, true));
     }
-    let started = Instant::now();
-    let effects = trained.scene.effects;
-    let dynamic = simulate_with(
-        trained,
-        motion,
-        &effects,
-        options,
-        ComparePhase::Simulating,
-        progress,
-    )?;
-    let still_effects = Effects {
-        dynamics: false,
-        ..effects
+    let effects = Effects {
+        dynamics: dynamic && trained.scene.effects.dynamics,
+        ..trained.scene.effects
     };
-    let quasi_static = simulate_with(
-        trained,
-        motion,
-        &still_effects,
-        options,
-        ComparePhase::SimulatingStatic,
-        progress,
-    )?;
-    let simulate_secs = started.elapsed().as_secs_f64();
+    let phase = match dynamic {
+        true => ComparePhase::Simulating,
+        false => ComparePhase::SimulatingStatic,
+    };
+    let simulated = simulate_with(trained, motion, &effects, options, phase, progress)?;
     if options.use_cache {
         std::fs::create_dir_all(&dir).map_err(|e| TrainError::io(e, &dir))?;
-        write_frames(&static_path, &quasi_static)?;
-        write_frames(&path, &dynamic)?;
+        write_frames(&file, &simulated)?;
         let json = serde_json::to_vec_pretty(&record)
             .map_err(|e| TrainError::Checkpoint(e.to_string()))?;
         write_atomic(&dir.join(format!("{stem}.json")), &json)?;
     }
-    Ok(Reference {
-        dynamic,
-        quasi_static,
-        path,
-        cached: false,
-        simulate_secs,
-    })
+    Ok((simulated, path, false))
 }
 
 #[cfg(test)]

@@ -292,6 +292,10 @@ pub struct MotionMeasures {
     /// and in older checks).
     #[serde(default)]
     pub one_step: Option<super::OneStep>,
+    /// The reference against itself at twice the iterations ([`super::reference_spread`];
+    /// `None` unless asked for, and in older checks).
+    #[serde(default)]
+    pub spread: Option<super::ReferenceSpread>,
 }
 
 /// Measures `seq` on `poses` (one frame each) with the still flags `still`.
@@ -371,6 +375,7 @@ pub fn measure_motion(
         )?,
         drift: None,
         one_step: None,
+        spread: None,
     })
 }
 

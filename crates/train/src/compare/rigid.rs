@@ -82,7 +82,7 @@ pub struct RigidSplit {
 
 /// Mean over frames of `fit(reference[k] -> candidate[k])`, both parts in mm; `None` when a
 /// frame has no fit (a non-finite coordinate).
-fn mean_fit(
+pub(super) fn mean_fit(
     reference: &[Vec<Vec3>],
     candidate: &[Vec<Vec3>],
 ) -> Result<Option<(f64, f64)>, TrainError> {

@@ -48,8 +48,8 @@ fn row(label: &'static str, values: [Option<f64>; 3], decimals: usize) -> Measur
 
 impl MotionMeasures {
     /// The geometric rows: distances, swings, the rigid split (all frames only: a frame's
-    /// best rigid motion is fitted per frame), the GRU state's drift and the one-step check
-    /// (all frames only) and the hem radii (still and moving only).
+    /// best rigid motion is fitted per frame), the GRU state's drift, the one-step check and
+    /// the reference's spread (all frames only) and the hem radii (still and moving only).
     pub fn rows(&self) -> Vec<MeasureRow> {
         let mut rows = vec![
             row(
@@ -118,6 +118,25 @@ impl MotionMeasures {
                     "one-step turn with body, deg",
                     [Some(turn), None, None],
                     2,
+                ));
+            }
+        }
+        if let Some(spread) = &self.spread {
+            rows.push(row(
+                "reference spread, mm",
+                [Some(spread.mean_mm), None, None],
+                1,
+            ));
+            rows.push(row(
+                "reference spread p95, mm",
+                [Some(spread.p95_mm), None, None],
+                1,
+            ));
+            if let Some(shape) = spread.shape_mm {
+                rows.push(row(
+                    "reference spread after rigid fit, mm",
+                    [Some(shape), None, None],
+                    1,
                 ));
             }
         }
@@ -240,6 +259,7 @@ mod tests {
             rigid: None,
             drift: None,
             one_step: None,
+            spread: None,
         };
         let rows = m.rows();
         assert_eq!(
@@ -278,6 +298,19 @@ mod tests {
         assert_eq!(rows.len(), 8, "the one-step check adds four rows");
         assert_eq!(rows[4].label, "one-step distance, mm");
         assert_eq!(rows[7].cells(), ["-0.46", "—", "—"]);
+        let spread = MotionMeasures {
+            spread: Some(super::super::ReferenceSpread {
+                iterations: 200,
+                mean_mm: 17.1,
+                p95_mm: 67.9,
+                shape_mm: Some(7.6),
+            }),
+            ..m
+        };
+        let rows = spread.rows();
+        assert_eq!(rows.len(), 7, "the spread adds three rows");
+        assert_eq!(rows[4].label, "reference spread, mm");
+        assert_eq!(rows[6].cells(), ["7.6", "—", "—"]);
         let still_body = MotionMeasures {
             one_step: stepped.one_step.map(|s| super::super::OneStep {
                 turn_deg: None,

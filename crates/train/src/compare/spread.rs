@@ -1,0 +1,90 @@
+//! The reference's own uncertainty: the same motion simulated with twice the L-BFGS
+//! iterations per frame, and how far the two simulations are apart. Where a garment can
+//! slide over the body (a shirt on a turning torso), a small difference in one frame's
+//! solve can leave the two simulations in different slip states for the rest of the motion
+//! (docs/TRAINING.md round 20), so a network's distance to the simulator means little below
+//! this spread.
+
+use serde::{Deserialize, Serialize};
+
+use neural_cloth_core::geometry::Vec3;
+use neural_cloth_core::scene::Motion;
+
+use super::super::TrainError;
+use super::super::trained::TrainedModel;
+use super::rigid::mean_fit;
+use super::{CompareOptions, ComparePhase, distance_stats, simulation_for};
+
+/// How far the reference simulation is from the same simulation at twice the iterations.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceSpread {
+    /// Iterations per frame of the finer simulation (twice the reference's).
+    pub iterations: usize,
+    /// Mean distance between the two over every vertex of every frame, mm.
+    pub mean_mm: f64,
+    /// 95th percentile of the same distances, mm.
+    pub p95_mm: f64,
+    /// Mean distance after each frame's best rigid motion of the whole garment (the
+    /// difference in shape, without the difference in slip), mm; `None` when a frame is not
+    /// finite.
+    pub shape_mm: Option<f64>,
+}
+
+/// The spread of `reference` (the simulation of `motion` under `options`) against the
+/// simulation at twice the iterations (cached beside it).
+pub fn reference_spread(
+    trained: &TrainedModel,
+    motion: &Motion,
+    options: &CompareOptions,
+    reference: &[Vec<Vec3>],
+    progress: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
+) -> Result<ReferenceSpread, TrainError> {
+    let finer = CompareOptions {
+        iterations: 2 * options.iterations,
+        ..options.clone()
+    };
+    let (fine, _, _) = simulation_for(trained, motion, &finer, progress)?;
+    spread_between(reference, &fine, finer.iterations)
+}
+
+/// The spread of `reference` against `fine`, simulated with `iterations` per frame.
+pub fn spread_between(
+    reference: &[Vec<Vec3>],
+    fine: &[Vec<Vec3>],
+    iterations: usize,
+) -> Result<ReferenceSpread, TrainError> {
+    let all = distance_stats(fine, reference, &|_| true)?
+        .ok_or_else(|| TrainError::Data("no frames to measure the reference's spread".into()))?;
+    Ok(ReferenceSpread {
+        iterations,
+        mean_mm: all.mean_mm,
+        p95_mm: all.p95_mm,
+        shape_mm: mean_fit(fine, reference)?.map(|(shape, _)| shape),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_spread_of_a_simulation_against_itself_is_zero_and_a_turn_is_slip() {
+        let frame: Vec<Vec3> = (0..20)
+            .map(|i| Vec3::new((i % 5) as f32 * 0.1, (i / 5) as f32 * 0.1, 0.02 * i as f32))
+            .collect();
+        let one = std::slice::from_ref(&frame);
+        let same = spread_between(one, one, 200).unwrap();
+        assert_eq!(same.mean_mm, 0.0);
+        assert!(same.shape_mm.unwrap() < 1e-9, "{same:?}");
+        assert_eq!(same.iterations, 200);
+        // The same garment turned 10 degrees about the vertical: far apart, the same shape.
+        let (s, c) = 10f32.to_radians().sin_cos();
+        let turned: Vec<Vec3> = frame
+            .iter()
+            .map(|p| Vec3::new(c * p.x + s * p.z, p.y, -s * p.x + c * p.z))
+            .collect();
+        let spread = spread_between(&[frame], &[turned], 200).unwrap();
+        assert!(spread.mean_mm > 5.0, "{spread:?}");
+        assert!(spread.shape_mm.unwrap() < 1e-3, "{spread:?}");
+    }
+}
