@@ -80,7 +80,13 @@ pub fn render_training_checks(s: &mut String, checks: &[TrainingCheck]) {
          without dynamics). Caution on the t-shirt's swing since round 7: the network's w = 0 drape \
          hangs 4-7 mm above the simulator's still drape and its dynamic branch adds that sag back \
          for any motion (docs/TRAINING.md, round 8), so its swing (and the \"swing ≥ half\" verdicts \
-         below) include that offset; its distances to the simulator at w = 1 do not.\n"
+         below) include that offset; its distances to the simulator at w = 1 do not. \
+         Caution on every distance to the simulator since round 20: the reference at 100 \
+         iterations per frame is 32-36 mm from the same simulation at 200 on the t-shirt's twirl \
+         and spin (a loose shirt whirls to either side of a spinning body, and the two simulations \
+         pick opposite sides), so no network can be within 12 mm of both; the diagnostic row \
+         \"the simulator against itself\" shows the spread where it was measured \
+         (`compare --spread`).\n"
     );
     let _ = writeln!(
         s,
@@ -268,6 +274,21 @@ fn render_verdicts(s: &mut String, checks: &[TrainingCheck]) {
                 None,
             );
         }
+        // Nor this: how far the reference is from itself at twice the iterations, below
+        // which a distance to it means little.
+        if let Some(spread) = m.spread {
+            let shape = spread
+                .shape_mm
+                .map_or_else(String::new, |d| format!(", after rigid fit {d:.1}"));
+            row(
+                "(diagnostic) the simulator against itself at twice the iterations",
+                format!(
+                    "{:.1} mm (p95 {:.1}{shape}; {} iterations)",
+                    spread.mean_mm, spread.p95_mm, spread.iterations
+                ),
+                None,
+            );
+        }
         row(
             "no dead network, no NaN",
             format!(
@@ -409,6 +430,28 @@ mod tests {
         let s = render(&[c]);
         assert!(
             s.contains("| (diagnostic) one simulator step from the network's own frames | 7.8 mm (shape 7.1, height +1.2, turn with the body -0.46°) | — |"),
+            "{s}"
+        );
+    }
+
+    #[test]
+    fn the_reference_spread_is_shown_as_a_diagnostic() {
+        let render = |c: &[TrainingCheck]| {
+            let mut s = String::new();
+            render_training_checks(&mut s, c);
+            s
+        };
+        let mut c = check(1.0, 0.0, 0.0);
+        assert!(!render(&[c.clone()]).contains("| (diagnostic) the simulator against itself"));
+        c.motion.measures.spread = Some(neural_cloth_train::compare::ReferenceSpread {
+            iterations: 200,
+            mean_mm: 35.64,
+            p95_mm: 56.5,
+            shape_mm: Some(6.8),
+        });
+        let s = render(&[c]);
+        assert!(
+            s.contains("| (diagnostic) the simulator against itself at twice the iterations | 35.6 mm (p95 56.5, after rigid fit 6.8; 200 iterations) | — |"),
             "{s}"
         );
     }
