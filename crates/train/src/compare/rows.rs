@@ -122,22 +122,15 @@ impl MotionMeasures {
             }
         }
         if let Some(spread) = &self.spread {
-            rows.push(row(
-                "reference spread, mm",
-                [Some(spread.mean_mm), None, None],
-                1,
-            ));
-            rows.push(row(
-                "reference spread p95, mm",
-                [Some(spread.p95_mm), None, None],
-                1,
-            ));
-            if let Some(shape) = spread.shape_mm {
-                rows.push(row(
-                    "reference spread after rigid fit, mm",
-                    [Some(shape), None, None],
-                    1,
-                ));
+            let measured = [
+                ("reference spread, mm", Some(spread.mean_mm)),
+                ("reference spread p95, mm", Some(spread.p95_mm)),
+                ("reference spread after rigid fit, mm", spread.shape_mm),
+            ];
+            for (label, value) in measured {
+                if let Some(value) = value {
+                    rows.push(row(label, [Some(value), None, None], 1));
+                }
             }
         }
         if let Some(hem) = &self.hem {
