@@ -44,8 +44,8 @@ pub struct CompareArgs {
     #[arg(long)]
     pub one_step: bool,
     /// Also simulate each motion with twice the iterations and print how far the two
-    /// simulations are apart: the reference's own uncertainty, below which a distance to it
-    /// means little (costs about two more references; cached).
+    /// simulations are apart: whether the reference is converged (a distance to an
+    /// unconverged one means little; costs about two more references; cached).
     #[arg(long)]
     pub spread: bool,
     /// Print the report as JSON instead of a table.

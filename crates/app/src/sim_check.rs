@@ -20,7 +20,7 @@ pub struct SimCheck {
     /// default false.
     pub shown_motion_only: bool,
     /// Also simulate with twice the iterations and show how far the two references are
-    /// apart (the reference's own uncertainty); default false.
+    /// apart (whether the reference is converged); default false.
     pub spread: bool,
     /// The running comparison and the last result (or the error that ended the last check).
     pub job: JobSlot<Option<CompareProgress>, CompareReport>,

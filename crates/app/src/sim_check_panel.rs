@@ -72,7 +72,7 @@ fn check_settings_ui(
     ui.checkbox(&mut check.spread, "measure the reference's spread")
         .on_hover_text(
             "Also simulate with twice the iterations and show how far the two simulations \
-             are apart: a distance to the simulator means little below it",
+             are apart: whether the reference is converged",
         );
     ui.add_enabled(
         unavailable.is_none(),

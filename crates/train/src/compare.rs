@@ -28,7 +28,7 @@
 //!   simulator step from the network's own two previous frames, which says whether the
 //!   network's motion obeys the physics frame by frame, and which way physics pushes it;
 //! - the **reference spread** ([`reference_spread`], on request): the reference against the
-//!   same simulation at twice the iterations, the uncertainty of the reference itself;
+//!   same simulation at twice the iterations, whether the reference is converged;
 //! - the paper's §4.2 **metrics** of both sequences (as `eval`).
 //!
 //! The reference is simulated with the report's reference settings (200 L-BFGS iterations per
@@ -102,9 +102,9 @@ pub struct CompareOptions {
     /// false.
     pub one_step: bool,
     /// Also simulate each motion with twice the iterations and report how far the two
-    /// simulations are apart ([`reference_spread`]: the reference's own uncertainty, below
-    /// which a network's distance to it means little; costs about two references more);
-    /// default false.
+    /// simulations are apart ([`reference_spread`]: whether the reference is converged; a
+    /// network's distance to an unconverged one means little; costs about two references
+    /// more); default false.
     pub spread: bool,
 }
 

@@ -1,9 +1,9 @@
-//! The reference's own uncertainty: the same motion simulated with twice the L-BFGS
-//! iterations per frame, and how far the two simulations are apart. Where a garment can
-//! slide over the body (a shirt on a turning torso), a small difference in one frame's
-//! solve can leave the two simulations in different slip states for the rest of the motion
-//! (docs/TRAINING.md round 20), so a network's distance to the simulator means little below
-//! this spread.
+//! Whether the reference is converged: the same motion simulated with twice the L-BFGS
+//! iterations per frame, and how far the two simulations are apart. On fast turns a small
+//! difference in the early frames' solves can leave a loose garment in another state for the
+//! rest of the motion (the t-shirt on the spin whirls to the other side of the body at 100
+//! iterations than at 200, 36 mm apart, while 200 and 400 agree to 5 mm: docs/TRAINING.md
+//! round 20), so a network's distance to an unconverged reference means little.
 
 use serde::{Deserialize, Serialize};
 
