@@ -66,6 +66,16 @@ pub fn inertia_through_past(
     )
 }
 
+/// The frame before last that makes the plain inertia projection `2x_{t-1} - x_{t-2}'` the
+/// boosted one `x_{t-1} + (1 + α)(x_{t-1} - x_{t-2})` ([`crate::TrainConfig::momentum_boost`]):
+/// `x_{t-2}' = (1 + α) x_{t-2} - α x_{t-1}`; `x_t2` itself when `alpha` is 0.
+pub fn boosted_history(x_t1: &Tensor<3>, x_t2: Tensor<3>, alpha: f64) -> Tensor<3> {
+    if alpha == 0.0 {
+        return x_t2;
+    }
+    x_t2.mul_scalar(1.0 + alpha) - x_t1.clone().mul_scalar(alpha)
+}
+
 /// Skins rest positions `[B, T, V, 3]` with per-vertex blended 3x4 matrices `[B, T, V, 12]`
 /// (row-major): `x_r = Σ_c M_{r c} p_c + M_{r 3}`. Element-wise only, so its backward pass is
 /// element-wise too.

@@ -233,7 +233,7 @@ impl NeuralSession {
         let inertia = match self.config.inertia_mode {
             InertiaMode::Ours => {
                 let alpha = self.config.momentum_boost_at(self.filter.steps_taken());
-                let xt2 = boosted_history(&xt1, xt2, alpha);
+                let xt2 = super::losses::boosted_history(&xt1, xt2, alpha);
                 self.terms.inertia(&xt, &xt1, &xt2, self.dt_secs())
             }
             InertiaMode::Snug => {
@@ -364,16 +364,6 @@ impl NeuralSession {
     fn dt_secs(&self) -> f32 {
         1.0 / self.fps
     }
-}
-
-/// The frame before last that makes the plain inertia projection `2x_{t-1} - x_{t-2}'` the
-/// boosted one `x_{t-1} + (1 + α)(x_{t-1} - x_{t-2})` ([`TrainConfig::momentum_boost`]):
-/// `x_{t-2}' = (1 + α) x_{t-2} - α x_{t-1}`; `x_t2` itself when `alpha` is 0.
-fn boosted_history(x_t1: &Tensor<3>, x_t2: Tensor<3>, alpha: f64) -> Tensor<3> {
-    if alpha == 0.0 {
-        return x_t2;
-    }
-    x_t2.mul_scalar(1.0 + alpha) - x_t1.clone().mul_scalar(alpha)
 }
 
 /// `x[:, k]` as `[B, V, 3]`.

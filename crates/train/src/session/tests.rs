@@ -74,7 +74,7 @@ fn the_boosted_history_projects_the_last_velocity_further() {
     let t1 = Tensor::<3>::from_data(TensorData::new(vec![1.0f32, 2.0, 3.0], [1, 1, 3]), &device);
     let t2 = Tensor::<3>::from_data(TensorData::new(vec![0.5f32, 2.0, 4.0], [1, 1, 3]), &device);
     // 2 x1 - x2' = x1 + (1 + α)(x1 - x2) with α = 0.25.
-    let x2 = super::boosted_history(&t1, t2.clone(), 0.25);
+    let x2 = crate::losses::boosted_history(&t1, t2.clone(), 0.25);
     let projected = (t1.clone().mul_scalar(2.0) - x2)
         .into_data()
         .try_to_vec::<f32>()
@@ -83,7 +83,7 @@ fn the_boosted_history_projects_the_last_velocity_further() {
     for (p, e) in projected.iter().zip(expected) {
         assert!((p - e).abs() < 1e-6, "{projected:?}");
     }
-    let plain = super::boosted_history(&t1, t2.clone(), 0.0);
+    let plain = crate::losses::boosted_history(&t1, t2.clone(), 0.0);
     assert_eq!(plain.into_data(), t2.into_data());
 }
 
