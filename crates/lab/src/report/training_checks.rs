@@ -85,7 +85,7 @@ pub fn render_training_checks(s: &mut String, checks: &[TrainingCheck]) {
          100 iterations per frame, which these checks used unless said, is not converged there: \
          32-36 mm from the same simulation at 200 on the t-shirt's twirl and spin (the spinning \
          shirt whirls off-centre and the two put it on opposite sides), where 200 and 400 agree \
-         to 4.9 mm on the spin; differences between runs hold, absolute distances are against \
+         to 4.9 mm on the spin (on the twirl even they are 43.9 mm apart); differences between runs hold, absolute distances are against \
          that reference. The diagnostic row \"the simulator against itself\" shows the spread \
          where it was measured (`compare --spread`).\n"
     );
