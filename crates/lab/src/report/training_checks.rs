@@ -412,13 +412,15 @@ mod tests {
         assert!(!s.contains("GRU state drift"), "not measured, not shown");
     }
 
+    /// The section rendered from `checks` alone.
+    fn render(checks: &[TrainingCheck]) -> String {
+        let mut s = String::new();
+        render_training_checks(&mut s, checks);
+        s
+    }
+
     #[test]
     fn the_one_step_check_is_shown_as_a_diagnostic() {
-        let render = |c: &[TrainingCheck]| {
-            let mut s = String::new();
-            render_training_checks(&mut s, c);
-            s
-        };
         let mut c = check(1.0, 0.17, 0.27);
         assert!(!render(&[c.clone()]).contains("one simulator step"));
         c.motion.measures.one_step = Some(neural_cloth_train::compare::OneStep {
@@ -437,11 +439,6 @@ mod tests {
 
     #[test]
     fn the_reference_spread_is_shown_as_a_diagnostic() {
-        let render = |c: &[TrainingCheck]| {
-            let mut s = String::new();
-            render_training_checks(&mut s, c);
-            s
-        };
         let mut c = check(1.0, 0.0, 0.0);
         assert!(!render(&[c.clone()]).contains("| (diagnostic) the simulator against itself"));
         c.motion.measures.spread = Some(neural_cloth_train::compare::ReferenceSpread {
