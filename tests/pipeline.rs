@@ -1395,6 +1395,39 @@ pinning = true
         let (at_16, phases) = count(&finer);
         assert_eq!(phases, (0, 10));
         assert!(!at_16.motions[0].reference.cached);
+        // The sensitivity simulates once more from a start moved by a micrometre, at the
+        // reference's iterations, in its own cache file.
+        let sensitive = CompareOptions {
+            sensitivity: true,
+            ..quick()
+        };
+        let (with_jitter, phases) = count(&sensitive);
+        assert_eq!(phases, (10, 0), "the moved start's simulation alone");
+        let moved = with_jitter.motions[0]
+            .measures
+            .sensitivity
+            .expect("asked for");
+        assert_eq!(moved.start_jitter_m, 1e-6);
+        assert_eq!(moved.iterations, quick().iterations);
+        assert!(
+            moved.mean_mm > 0.0 && moved.mean_mm < 1.0 && moved.p95_mm >= moved.mean_mm,
+            "a micrometre moves a tiny skirt on a walk by little, but not by nothing: {moved:?}"
+        );
+        let files = std::fs::read_dir(reference_dir(&run)).unwrap().count();
+        let (_, again) = count(&sensitive);
+        assert_eq!(again, (0, 0), "the moved start's simulation is cached");
+        assert_eq!(
+            std::fs::read_dir(reference_dir(&run)).unwrap().count(),
+            files
+        );
+        assert!(
+            std::fs::read_dir(reference_dir(&run)).unwrap().any(|f| f
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .contains("jitter1um")),
+            "named by its jitter"
+        );
         // Swap the garment in the run's scene: refused, naming the garment.
         let scene_toml = std::fs::read_to_string(run.join("scene.toml")).unwrap();
         std::fs::write(

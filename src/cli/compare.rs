@@ -48,6 +48,12 @@ pub struct CompareArgs {
     /// unconverged one means little; costs about two more references; cached).
     #[arg(long)]
     pub spread: bool,
+    /// Also simulate each motion from the settled garment moved by a micrometre and print how
+    /// far it is from the reference: whether the motion is predictable at all (a simulation
+    /// that forks on such a change cannot be matched frame by frame; costs about one more
+    /// reference; cached).
+    #[arg(long)]
+    pub sensitivity: bool,
     /// Print the report as JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -71,6 +77,7 @@ pub fn run(args: CompareArgs) -> anyhow::Result<()> {
         drift: !args.no_drift,
         one_step: args.one_step,
         spread: args.spread,
+        sensitivity: args.sensitivity,
         ..Default::default()
     };
     options.validate()?;
@@ -134,7 +141,8 @@ pub fn table(report: &CompareReport) -> String {
          restarted one training window (and burn-in) before each frame; one-step: each \
          network frame against one simulator step from the network's two previous frames \
          (turn with body < 0: physics holds the garment further back); reference spread: the \
-         reference against the same simulation at twice the iterations",
+         reference against the same simulation at twice the iterations; reference \
+         sensitivity: against the same simulation from a start moved by 1 µm",
         o.still_speed_m_per_s, o.still_window_secs
     );
     for m in &report.motions {

@@ -22,6 +22,9 @@ pub struct SimCheck {
     /// Also simulate with twice the iterations and show how far the two references are
     /// apart (whether the reference is converged); default false.
     pub spread: bool,
+    /// Also simulate from a start moved by a micrometre and show how far it is from the
+    /// reference (whether the motion is predictable at all); default false.
+    pub sensitivity: bool,
     /// The running comparison and the last result (or the error that ended the last check).
     pub job: JobSlot<Option<CompareProgress>, CompareReport>,
 }
@@ -32,6 +35,7 @@ impl Default for SimCheck {
             iterations: 200,
             shown_motion_only: false,
             spread: false,
+            sensitivity: false,
             job: JobSlot::default(),
         }
     }
@@ -97,6 +101,7 @@ impl SimCheck {
         let options = CompareOptions {
             iterations: self.iterations.clamp(1, 10_000),
             spread: self.spread,
+            sensitivity: self.sensitivity,
             ..Default::default()
         };
         self.job.start(

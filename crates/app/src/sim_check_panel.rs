@@ -46,8 +46,8 @@ fn check_progress_ui(ui: &mut egui::Ui, check: &SimCheck) {
         .request_repaint_after(std::time::Duration::from_millis(250));
 }
 
-/// Iterations per frame, "only the shown motion" (`shown`: its name), the spread option and
-/// the start button, disabled with `unavailable` as its hover text. Returns whether the
+/// Iterations per frame, "only the shown motion" (`shown`: its name), the spread and
+/// sensitivity options and the start button, disabled with `unavailable` as its hover text. Returns whether the
 /// button was clicked.
 fn check_settings_ui(
     ui: &mut egui::Ui,
@@ -74,6 +74,15 @@ fn check_settings_ui(
             "Also simulate with twice the iterations and show how far the two simulations \
              are apart: whether the reference is converged",
         );
+    ui.checkbox(
+        &mut check.sensitivity,
+        "measure its sensitivity to the start",
+    )
+    .on_hover_text(
+        "Also simulate from the settled garment moved by a micrometre and show how far \
+             that is from the reference: a motion whose simulation forks on such a change \
+             cannot be matched frame by frame by any model",
+    );
     ui.add_enabled(
         unavailable.is_none(),
         egui::Button::new("Check against simulation"),

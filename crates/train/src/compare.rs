@@ -29,6 +29,9 @@
 //!   network's motion obeys the physics frame by frame, and which way physics pushes it;
 //! - the **reference spread** ([`reference_spread`], on request): the reference against the
 //!   same simulation at twice the iterations, whether the reference is converged;
+//! - the **reference sensitivity** ([`reference_sensitivity`], on request): the reference
+//!   against the same simulation from a start moved by a micrometre, whether the motion is
+//!   predictable at all (a loose garment on a fast turn can slip at one frame or another);
 //! - the paper's §4.2 **metrics** of both sequences (as `eval`).
 //!
 //! The reference is simulated with the report's reference settings (200 L-BFGS iterations per
@@ -55,7 +58,9 @@ pub use one_step::{OneStep, TURNING_DEG_PER_FRAME, one_step, turn_about_vertical
 pub use record::{TrainingCheck, append_checks, read_checks};
 pub use rigid::{RigidFit, RigidSplit, best_rigid_fit, rigid_split};
 pub use rows::{MeasureRow, MetricRow};
-pub use spread::{ReferenceSpread, reference_spread, spread_between};
+pub use spread::{
+    ReferenceSpread, SENSITIVITY_JITTER_M, reference_sensitivity, reference_spread, spread_between,
+};
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -106,6 +111,15 @@ pub struct CompareOptions {
     /// network's distance to an unconverged one means little; costs about two references
     /// more); default false.
     pub spread: bool,
+    /// Also simulate each motion from the settled garment moved by at most
+    /// [`SENSITIVITY_JITTER_M`] per coordinate and report how far it is from the reference
+    /// ([`reference_sensitivity`]: a motion whose simulation forks on such a change cannot be
+    /// matched frame by frame by any model; costs about one reference more); default false.
+    pub sensitivity: bool,
+    /// Largest change of each coordinate of the reference's settled garment before the
+    /// motion plays, metres ([`neural_cloth_physics::simulator::SimOptions::start_jitter_m`]),
+    /// 0..=0.01; default 0. The sensitivity check sets it; a reference has none.
+    pub start_jitter_m: f64,
 }
 
 impl Default for CompareOptions {
@@ -120,6 +134,8 @@ impl Default for CompareOptions {
             drift: true,
             one_step: false,
             spread: false,
+            sensitivity: false,
+            start_jitter_m: 0.0,
         }
     }
 }
@@ -164,6 +180,12 @@ impl CompareOptions {
             "compare.still_window_secs",
             self.still_window_secs.to_string(),
             "0..=10 s",
+        )?;
+        check(
+            (0.0..=0.01).contains(&self.start_jitter_m),
+            "compare.start_jitter_m",
+            self.start_jitter_m.to_string(),
+            "0..=0.01 m",
         )
     }
 }
@@ -552,6 +574,16 @@ fn compare_motion(
     measures.one_step = checked;
     measures.spread = match options.spread {
         true => Some(reference_spread(
+            trained,
+            motion,
+            options,
+            &reference.dynamic,
+            say,
+        )?),
+        false => None,
+    };
+    measures.sensitivity = match options.sensitivity {
+        true => Some(reference_sensitivity(
             trained,
             motion,
             options,

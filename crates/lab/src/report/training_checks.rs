@@ -277,15 +277,27 @@ fn render_verdicts(s: &mut String, checks: &[TrainingCheck]) {
         }
         // Nor this: how far the reference is from itself at twice the iterations, below
         // which a distance to it means little.
-        if let Some(spread) = m.spread {
-            let shape = spread
+        // And from a start moved by a micrometre: whether the motion is predictable at all.
+        let others = [
+            (
+                m.spread,
+                "(diagnostic) the simulator against itself at twice the iterations",
+            ),
+            (
+                m.sensitivity,
+                "(diagnostic) the simulator against itself from a start moved by 1 µm",
+            ),
+        ];
+        for (other, label) in others {
+            let Some(other) = other else { continue };
+            let shape = other
                 .shape_mm
                 .map_or_else(String::new, |d| format!(", after rigid fit {d:.1}"));
             row(
-                "(diagnostic) the simulator against itself at twice the iterations",
+                label,
                 format!(
                     "{:.1} mm (p95 {:.1}{shape}; {} iterations)",
-                    spread.mean_mm, spread.p95_mm, spread.iterations
+                    other.mean_mm, other.p95_mm, other.iterations
                 ),
                 None,
             );
@@ -441,15 +453,30 @@ mod tests {
     fn the_reference_spread_is_shown_as_a_diagnostic() {
         let mut c = check(1.0, 0.0, 0.0);
         assert!(!render(&[c.clone()]).contains("| (diagnostic) the simulator against itself"));
-        c.motion.measures.spread = Some(neural_cloth_train::compare::ReferenceSpread {
+        let spread = neural_cloth_train::compare::ReferenceSpread {
             iterations: 200,
+            start_jitter_m: 0.0,
             mean_mm: 35.64,
             p95_mm: 56.5,
             shape_mm: Some(6.8),
+        };
+        c.motion.measures.spread = Some(spread);
+        let s = render(&[c.clone()]);
+        assert!(
+            s.contains("| (diagnostic) the simulator against itself at twice the iterations | 35.6 mm (p95 56.5, after rigid fit 6.8; 200 iterations) | — |"),
+            "{s}"
+        );
+        assert!(!s.contains("start moved"), "{s}");
+        c.motion.measures.sensitivity = Some(neural_cloth_train::compare::ReferenceSpread {
+            iterations: 100,
+            start_jitter_m: 1e-6,
+            mean_mm: 30.04,
+            shape_mm: None,
+            ..spread
         });
         let s = render(&[c]);
         assert!(
-            s.contains("| (diagnostic) the simulator against itself at twice the iterations | 35.6 mm (p95 56.5, after rigid fit 6.8; 200 iterations) | — |"),
+            s.contains("| (diagnostic) the simulator against itself from a start moved by 1 µm | 30.0 mm (p95 56.5; 100 iterations) | — |"),
             "{s}"
         );
     }

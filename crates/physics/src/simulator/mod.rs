@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 use neural_cloth_core::geometry::Vec3;
 
 pub use residual::FrameResidual;
-pub use sequence::{SimProgress, Simulation, settle_on_rest_pose, simulate};
+pub use sequence::{SimProgress, Simulation, settle_on_rest_pose, simulate, start_jitter};
 
 use crate::collision::{BodyBatch, Contacts, PosedBody};
 use crate::friction::FrictionContacts;
@@ -49,6 +49,12 @@ pub struct SimOptions {
     /// Seconds the first pose is held (garment settling) before the motion plays; not output.
     /// 0..=60, default 0.
     pub settle_secs: f32,
+    /// Largest change of each coordinate of the settled garment before the motion plays, in
+    /// metres: every vertex moves by its own deterministic pseudo-random offset
+    /// ([`start_jitter`]), its velocity unchanged. How sensitive a motion's simulation is to
+    /// an imperceptible change of its start (`compare --sensitivity`). 0..=0.01, default 0
+    /// (none).
+    pub start_jitter_m: f64,
 }
 
 impl Default for SimOptions {
@@ -61,6 +67,7 @@ impl Default for SimOptions {
             tolerance: 1e-3,
             max_step_edges: 1.0,
             settle_secs: 0.0,
+            start_jitter_m: 0.0,
         }
     }
 }
@@ -86,6 +93,9 @@ impl SimOptions {
         }
         if !(0.0..=60.0).contains(&self.settle_secs) {
             return bad("settle_secs must be in [0, 60]");
+        }
+        if !(0.0..=0.01).contains(&self.start_jitter_m) {
+            return bad("start_jitter_m must be in [0, 0.01]");
         }
         Ok(())
     }
@@ -267,6 +277,30 @@ impl Stepper {
         }
         self.x_t2 = flatten(x_t2);
         self.x_t1 = flatten(x_t1);
+        Ok(())
+    }
+
+    /// Moves the garment by `offsets` (one per vertex) in both history frames, so that its
+    /// velocity is unchanged. Refused unless there is a finite offset per vertex.
+    pub fn displace(&mut self, offsets: &[Vec3]) -> Result<(), PhysicsError> {
+        let v = self.terms.rest().vertex_count();
+        if offsets.len() != v {
+            return Err(PhysicsError::ShapeMismatch {
+                what: "displacement".into(),
+                expected: format!("{v} vertices"),
+                found: offsets.len().to_string(),
+            });
+        }
+        if offsets.iter().any(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(PhysicsError::NonFinite("displacement".into()));
+        }
+        for frame in [&mut self.x_t1, &mut self.x_t2] {
+            for (x, d) in frame.chunks_exact_mut(3).zip(offsets) {
+                x.iter_mut()
+                    .zip(d.iter())
+                    .for_each(|(x, d)| *x += f64::from(*d));
+            }
+        }
         Ok(())
     }
 

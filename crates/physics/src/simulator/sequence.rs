@@ -62,6 +62,7 @@ pub fn simulate(
     let settle_steps = (options.settle_secs / dt).round() as usize;
     let first = motion.sample(0.0);
     let initial = garment.pose_vertices(avatar, &first);
+    let initial_count = initial.len();
     let mut stepper = Stepper::new(rest, fabric, effects, &initial, dt, options, device)?;
     let mut cached: Option<(neural_cloth_core::scene::Pose, Arc<PosedBody>)> = None;
     let mut input_at = |time: f32| -> Result<StepInput, PhysicsError> {
@@ -91,6 +92,9 @@ pub fn simulate(
     for _ in 0..settle_steps {
         stepper.step(&input_at(0.0)?)?;
     }
+    if options.start_jitter_m > 0.0 {
+        stepper.displace(&start_jitter(initial_count, options.start_jitter_m))?;
+    }
     let mut sim = Simulation {
         fps,
         ..Default::default()
@@ -113,6 +117,26 @@ pub fn simulate(
         }
     }
     Ok(sim)
+}
+
+/// Offsets of `vertices` vertices with every coordinate in `[-amplitude_m, amplitude_m]`,
+/// pseudo-random but the same on every call (SplitMix64 of the coordinate's index): the
+/// start jitter of [`SimOptions::start_jitter_m`].
+pub fn start_jitter(vertices: usize, amplitude_m: f64) -> Vec<Vec3> {
+    let unit = |i: u64| {
+        let mut z = i.wrapping_add(1).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        // The top 53 bits as a fraction in [0, 1), mapped to [-1, 1).
+        2.0 * ((z >> 11) as f64 / (1u64 << 53) as f64) - 1.0
+    };
+    (0..vertices as u64)
+        .map(|v| {
+            let c = |k: u64| (amplitude_m * unit(3 * v + k)) as f32;
+            Vec3::new(c(0), c(1), c(2))
+        })
+        .collect()
 }
 
 /// The garment after `settle_secs` of simulation on `avatar`'s held rest pose (a one-frame

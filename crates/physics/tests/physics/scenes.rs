@@ -321,3 +321,84 @@ fn a_step_from_a_set_history_is_the_step_the_stepper_took() {
     broken[3].x = f32::NAN;
     assert!(fresh.set_history(&frames[1], &broken).is_err());
 }
+
+#[test]
+fn a_start_jitter_moves_the_garment_by_at_most_its_amplitude_and_keeps_its_velocity() {
+    use neural_cloth_physics::shapes::sheet;
+    use neural_cloth_physics::simulator::{StepInput, Stepper, start_jitter};
+
+    use super::common::{all_effects, rest_of};
+
+    let jitter = start_jitter(50, 1e-6);
+    assert_eq!(jitter, start_jitter(50, 1e-6), "the same on every call");
+    let largest = jitter
+        .iter()
+        .flat_map(|p| p.iter().map(|c| c.abs()))
+        .fold(0.0f32, f32::max);
+    assert!(
+        largest <= 1e-6 && largest > 5e-7,
+        "largest coordinate {largest}"
+    );
+    assert!(
+        jitter.windows(2).all(|w| w[0] != w[1]),
+        "each vertex its own"
+    );
+
+    let mesh = sheet(
+        6,
+        6,
+        Vec3::new(-0.2, 1.0, 0.2),
+        Vec3::x() * 0.4,
+        -Vec3::z() * 0.4,
+    );
+    let fabric = FabricParams::default();
+    let effects = neural_cloth_physics::Effects {
+        collision: false,
+        pinning: false,
+        friction: false,
+        ..all_effects()
+    };
+    let options = SimOptions {
+        iterations_per_step: 20,
+        ..SimOptions::default()
+    };
+    let new_stepper = || {
+        Stepper::new(
+            rest_of(&mesh, &[], &[], &fabric),
+            &fabric,
+            &effects,
+            &mesh.positions,
+            1.0 / 30.0,
+            &options,
+            &Device::flex(),
+        )
+        .unwrap()
+    };
+    let input = StepInput::default();
+    let (mut plain, mut moved) = (new_stepper(), new_stepper());
+    for _ in 0..3 {
+        plain.step(&input).unwrap();
+        moved.step(&input).unwrap();
+    }
+    // A rigid shift of a falling sheet without a body falls exactly as before, shifted: the
+    // velocity is kept (moving only the last frame would change it by 1 cm / Δt).
+    let shift = vec![Vec3::new(0.01, 0.0, 0.0); mesh.positions.len()];
+    moved.displace(&shift).unwrap();
+    let (a, _) = plain.step(&input).unwrap();
+    let (b, _) = moved.step(&input).unwrap();
+    let off = a
+        .iter()
+        .zip(&b)
+        .map(|(a, b)| (b - a - shift[0]).norm())
+        .fold(0.0f32, f32::max);
+    assert!(off < 1e-5, "{off} m from the shifted step");
+    assert!(moved.displace(&shift[1..]).is_err());
+    let mut broken = shift.clone();
+    broken[2].y = f32::INFINITY;
+    assert!(moved.displace(&broken).is_err());
+    let bad = SimOptions {
+        start_jitter_m: 0.1,
+        ..SimOptions::default()
+    };
+    assert!(bad.validate().is_err(), "10 cm is not a jitter");
+}

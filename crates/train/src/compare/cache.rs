@@ -6,8 +6,10 @@
 //! RUN/reference/<motion>-<N>it-<fps>fps-<key>.static.pc2   the quasi-static solve of each frame
 //! RUN/reference/<motion>-<N>it-<fps>fps-<key>.json         what the key covers, for people
 //! ```
-//! `<key>` is a 64-bit FNV-1a hash of everything the result depends on: the motion's name and
-//! poses, the iterations, frame rate, settling time and tolerance, the garment (template,
+//! (the sensitivity check's simulations have `<N>it-jitter<J>um`, `J` the start jitter in
+//! micrometres). `<key>` is a 64-bit FNV-1a hash of everything the result depends on: the
+//! motion's name and poses, the iterations, frame rate, settling time, tolerance and start
+//! jitter (when set), the garment (template,
 //! faces, skin weights, pinned and collision-exempt vertices), the avatar, the fabric and the
 //! effects. A changed input gives another file; a file whose frame or vertex count does not
 //! match is simulated again. Files are written atomically (temporary + rename).
@@ -61,6 +63,9 @@ struct KeyRecord<'a> {
     fps: f32,
     settle_secs: f32,
     tolerance: f64,
+    /// The start jitter ([`CompareOptions::start_jitter_m`]), metres; absent when none.
+    #[serde(skip_serializing_if = "is_zero")]
+    start_jitter_m: f64,
     garment: &'a str,
     garment_fingerprint: u64,
     garment_vertices: usize,
@@ -69,6 +74,11 @@ struct KeyRecord<'a> {
     fabric: &'a neural_cloth_physics::FabricParams,
     effects: Effects,
     key: String,
+}
+
+/// True for 0 (a field left out of the key record).
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// FNV-1a over a stream of bytes.
@@ -126,6 +136,11 @@ fn key_record<'a>(
     h.eat(&(options.iterations as u64).to_le_bytes());
     h.floats([motion.fps, options.settle_secs]);
     h.eat(&REFERENCE_TOLERANCE.to_le_bytes());
+    if options.start_jitter_m > 0.0 {
+        // Only when set, so that the keys of the references cached before it existed stand.
+        h.eat(b"start jitter");
+        h.eat(&options.start_jitter_m.to_le_bytes());
+    }
     let garment_fp = garment_fingerprint(garment);
     let avatar_fp = avatar_fingerprint(&scene.avatar);
     h.eat(&garment_fp.to_le_bytes());
@@ -149,6 +164,7 @@ fn key_record<'a>(
         fps: motion.fps,
         settle_secs: options.settle_secs,
         tolerance: REFERENCE_TOLERANCE,
+        start_jitter_m: options.start_jitter_m,
         garment: &garment.name,
         garment_fingerprint: garment_fp,
         garment_vertices: garment.vertex_count(),
@@ -197,6 +213,7 @@ fn simulate_with(
         iterations_per_step: options.iterations,
         tolerance: REFERENCE_TOLERANCE,
         settle_secs: options.settle_secs,
+        start_jitter_m: options.start_jitter_m,
         ..SimOptions::default()
     };
     let device = device_for(BackendKind::Cpu, false);
@@ -271,8 +288,12 @@ fn cached_or_simulated(
     progress: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
 ) -> Result<(Vec<Vec<Vec3>>, PathBuf, bool), TrainError> {
     let record = key_record(trained, motion, options)?;
+    let jitter = match options.start_jitter_m > 0.0 {
+        true => format!("-jitter{}um", options.start_jitter_m * 1e6),
+        false => String::new(),
+    };
     let stem = format!(
-        "{}-{}it-{}fps-{}",
+        "{}-{}it{jitter}-{}fps-{}",
         file_safe(&motion.name),
         options.iterations,
         motion.fps,

@@ -296,6 +296,10 @@ pub struct MotionMeasures {
     /// `None` unless asked for, and in older checks).
     #[serde(default)]
     pub spread: Option<super::ReferenceSpread>,
+    /// The reference against itself from a start moved by a micrometre
+    /// ([`super::reference_sensitivity`]; `None` unless asked for, and in older checks).
+    #[serde(default)]
+    pub sensitivity: Option<super::ReferenceSpread>,
 }
 
 /// Measures `seq` on `poses` (one frame each) with the still flags `still`.
@@ -376,6 +380,7 @@ pub fn measure_motion(
         drift: None,
         one_step: None,
         spread: None,
+        sensitivity: None,
     })
 }
 

@@ -3,6 +3,7 @@
 
 use super::MotionComparison;
 use super::measure::{HemPair, MotionMeasures};
+use super::spread::ReferenceSpread;
 
 /// One row of the geometric table: a label with its unit and the values over all frames,
 /// the still frames and the moving frames (`None`: not measured there).
@@ -121,13 +122,29 @@ impl MotionMeasures {
                 ));
             }
         }
-        if let Some(spread) = &self.spread {
-            let measured = [
-                ("reference spread, mm", Some(spread.mean_mm)),
-                ("reference spread p95, mm", Some(spread.p95_mm)),
-                ("reference spread after rigid fit, mm", spread.shape_mm),
-            ];
-            for (label, value) in measured {
+        type Labels = [&'static str; 3];
+        let others: [(Option<&ReferenceSpread>, Labels); 2] = [
+            (
+                self.spread.as_ref(),
+                [
+                    "reference spread, mm",
+                    "reference spread p95, mm",
+                    "reference spread after rigid fit, mm",
+                ],
+            ),
+            (
+                self.sensitivity.as_ref(),
+                [
+                    "reference sensitivity, mm",
+                    "reference sensitivity p95, mm",
+                    "reference sensitivity after rigid fit, mm",
+                ],
+            ),
+        ];
+        for (other, labels) in others {
+            let Some(other) = other else { continue };
+            let values = [Some(other.mean_mm), Some(other.p95_mm), other.shape_mm];
+            for (label, value) in labels.into_iter().zip(values) {
                 if let Some(value) = value {
                     rows.push(row(label, [Some(value), None, None], 1));
                 }
@@ -253,6 +270,7 @@ mod tests {
             drift: None,
             one_step: None,
             spread: None,
+            sensitivity: None,
         };
         let rows = m.rows();
         assert_eq!(
@@ -294,6 +312,7 @@ mod tests {
         let spread = MotionMeasures {
             spread: Some(super::super::ReferenceSpread {
                 iterations: 200,
+                start_jitter_m: 0.0,
                 mean_mm: 17.1,
                 p95_mm: 67.9,
                 shape_mm: Some(7.6),
@@ -304,6 +323,22 @@ mod tests {
         assert_eq!(rows.len(), 7, "the spread adds three rows");
         assert_eq!(rows[4].label, "reference spread, mm");
         assert_eq!(rows[6].cells(), ["7.6", "—", "—"]);
+        let both = MotionMeasures {
+            sensitivity: spread.spread.map(|s| super::super::ReferenceSpread {
+                start_jitter_m: 1e-6,
+                mean_mm: 30.2,
+                ..s
+            }),
+            ..spread
+        };
+        let rows = both.rows();
+        assert_eq!(
+            rows.len(),
+            10,
+            "the sensitivity adds three rows after the spread"
+        );
+        assert_eq!(rows[7].label, "reference sensitivity, mm");
+        assert_eq!(rows[7].cells(), ["30.2", "—", "—"]);
         let still_body = MotionMeasures {
             one_step: stepped.one_step.map(|s| super::super::OneStep {
                 turn_deg: None,
