@@ -85,9 +85,13 @@ pub fn render_training_checks(s: &mut String, checks: &[TrainingCheck]) {
          100 iterations per frame, which these checks used unless said, is not converged there: \
          32-36 mm from the same simulation at 200 on the t-shirt's twirl and spin (the spinning \
          shirt whirls off-centre and the two put it on opposite sides), where 200 and 400 agree \
-         to 4.9 mm on the spin (on the twirl even they are 43.9 mm apart); differences between runs hold, absolute distances are against \
-         that reference. The diagnostic row \"the simulator against itself\" shows the spread \
-         where it was measured (`compare --spread`).\n"
+         to 4.9 mm on the spin; differences between runs hold, absolute distances are against \
+         that reference. Caution on the twirl (round 21): its simulation forks, the whole shirt \
+         slipping about the body at one frame or another, so that the same simulation from a \
+         start moved by 1 µm is 48.1 mm from it (on the spin: 4.7 mm); no distance to it \
+         frame by frame says much there. The diagnostic rows \"the simulator against itself\" \
+         show the spread and the sensitivity where they were measured (`compare --spread`, \
+         `--sensitivity`).\n"
     );
     let _ = writeln!(
         s,
