@@ -260,41 +260,9 @@ fn friction_turns_a_draped_sheet_with_its_spinning_body() {
 
 #[test]
 fn a_step_from_a_set_history_is_the_step_the_stepper_took() {
-    use neural_cloth_physics::shapes::sheet;
-    use neural_cloth_physics::simulator::{StepInput, Stepper};
+    use neural_cloth_physics::simulator::StepInput;
 
-    use super::common::{all_effects, rest_of};
-
-    let mesh = sheet(
-        6,
-        6,
-        Vec3::new(-0.2, 1.0, 0.2),
-        Vec3::x() * 0.4,
-        -Vec3::z() * 0.4,
-    );
-    let fabric = FabricParams::default();
-    let effects = neural_cloth_physics::Effects {
-        collision: false,
-        pinning: false,
-        friction: false,
-        ..all_effects()
-    };
-    let options = SimOptions {
-        iterations_per_step: 20,
-        ..SimOptions::default()
-    };
-    let new_stepper = || {
-        Stepper::new(
-            rest_of(&mesh, &[], &[], &fabric),
-            &fabric,
-            &effects,
-            &mesh.positions,
-            1.0 / 30.0,
-            &options,
-            &Device::flex(),
-        )
-        .unwrap()
-    };
+    let (_, new_stepper) = falling_sheet();
     let mut falling = new_stepper();
     let input = StepInput::default();
     let frames: Vec<Vec<Vec3>> = (0..4).map(|_| falling.step(&input).unwrap().0).collect();
@@ -324,10 +292,7 @@ fn a_step_from_a_set_history_is_the_step_the_stepper_took() {
 
 #[test]
 fn a_start_jitter_moves_the_garment_by_at_most_its_amplitude_and_keeps_its_velocity() {
-    use neural_cloth_physics::shapes::sheet;
-    use neural_cloth_physics::simulator::{StepInput, Stepper, start_jitter};
-
-    use super::common::{all_effects, rest_of};
+    use neural_cloth_physics::simulator::{StepInput, start_jitter};
 
     let jitter = start_jitter(50, 1e-6);
     assert_eq!(jitter, start_jitter(50, 1e-6), "the same on every call");
@@ -344,36 +309,7 @@ fn a_start_jitter_moves_the_garment_by_at_most_its_amplitude_and_keeps_its_veloc
         "each vertex its own"
     );
 
-    let mesh = sheet(
-        6,
-        6,
-        Vec3::new(-0.2, 1.0, 0.2),
-        Vec3::x() * 0.4,
-        -Vec3::z() * 0.4,
-    );
-    let fabric = FabricParams::default();
-    let effects = neural_cloth_physics::Effects {
-        collision: false,
-        pinning: false,
-        friction: false,
-        ..all_effects()
-    };
-    let options = SimOptions {
-        iterations_per_step: 20,
-        ..SimOptions::default()
-    };
-    let new_stepper = || {
-        Stepper::new(
-            rest_of(&mesh, &[], &[], &fabric),
-            &fabric,
-            &effects,
-            &mesh.positions,
-            1.0 / 30.0,
-            &options,
-            &Device::flex(),
-        )
-        .unwrap()
-    };
+    let (mesh, new_stepper) = falling_sheet();
     let input = StepInput::default();
     let (mut plain, mut moved) = (new_stepper(), new_stepper());
     for _ in 0..3 {
@@ -401,4 +337,50 @@ fn a_start_jitter_moves_the_garment_by_at_most_its_amplitude_and_keeps_its_veloc
         ..SimOptions::default()
     };
     assert!(bad.validate().is_err(), "10 cm is not a jitter");
+}
+
+/// A 6 x 6 sheet 1 m up without a body (collision, pinning and friction off) and a maker of
+/// steppers that start it at rest, at 30 fps with 20 iterations a step.
+fn falling_sheet() -> (
+    neural_cloth_core::geometry::TriMesh,
+    impl Fn() -> neural_cloth_physics::simulator::Stepper,
+) {
+    use neural_cloth_physics::shapes::sheet;
+    use neural_cloth_physics::simulator::Stepper;
+
+    use super::common::{all_effects, rest_of};
+
+    let mesh = sheet(
+        6,
+        6,
+        Vec3::new(-0.2, 1.0, 0.2),
+        Vec3::x() * 0.4,
+        -Vec3::z() * 0.4,
+    );
+    let fabric = FabricParams::default();
+    let effects = neural_cloth_physics::Effects {
+        collision: false,
+        pinning: false,
+        friction: false,
+        ..all_effects()
+    };
+    let options = SimOptions {
+        iterations_per_step: 20,
+        ..SimOptions::default()
+    };
+    let rest = rest_of(&mesh, &[], &[], &fabric);
+    let start = mesh.positions.clone();
+    let new_stepper = move || {
+        Stepper::new(
+            rest.clone(),
+            &fabric,
+            &effects,
+            &start,
+            1.0 / 30.0,
+            &options,
+            &Device::flex(),
+        )
+        .unwrap()
+    };
+    (mesh, new_stepper)
 }

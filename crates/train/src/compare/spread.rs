@@ -60,8 +60,7 @@ pub fn reference_spread(
         iterations: 2 * options.iterations,
         ..options.clone()
     };
-    let (fine, _, _) = simulation_for(trained, motion, &finer, progress)?;
-    spread_between(reference, &fine, finer.iterations, 0.0)
+    against_simulation(trained, motion, &finer, reference, progress)
 }
 
 /// The sensitivity of `reference` (the simulation of `motion` under `options`): the same
@@ -78,8 +77,25 @@ pub fn reference_sensitivity(
         start_jitter_m: options.start_jitter_m + SENSITIVITY_JITTER_M,
         ..options.clone()
     };
-    let (other, _, _) = simulation_for(trained, motion, &moved, progress)?;
-    spread_between(reference, &other, moved.iterations, moved.start_jitter_m)
+    against_simulation(trained, motion, &moved, reference, progress)
+}
+
+/// How far the simulation of `motion` under `other` (read from or written to the cache) is
+/// from `reference`.
+fn against_simulation(
+    trained: &TrainedModel,
+    motion: &Motion,
+    other: &CompareOptions,
+    reference: &[Vec<Vec3>],
+    progress: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
+) -> Result<ReferenceSpread, TrainError> {
+    let (simulated, _, _) = simulation_for(trained, motion, other, progress)?;
+    spread_between(
+        reference,
+        &simulated,
+        other.iterations,
+        other.start_jitter_m,
+    )
 }
 
 /// How far `other` (simulated with `iterations` per frame from a start moved by up to
