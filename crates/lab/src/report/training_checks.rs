@@ -470,7 +470,10 @@ mod tests {
             s.contains("| (diagnostic) the simulator against itself at twice the iterations | 35.6 mm (p95 56.5, after rigid fit 6.8; 200 iterations) | — |"),
             "{s}"
         );
-        assert!(!s.contains("start moved"), "{s}");
+        assert!(
+            !s.contains("| (diagnostic) the simulator against itself from a start"),
+            "{s}"
+        );
         c.motion.measures.sensitivity = Some(neural_cloth_train::compare::ReferenceSpread {
             iterations: 100,
             start_jitter_m: 1e-6,
