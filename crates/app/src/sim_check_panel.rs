@@ -47,8 +47,8 @@ fn check_progress_ui(ui: &mut egui::Ui, check: &SimCheck) {
 }
 
 /// Iterations per frame, "only the shown motion" (`shown`: its name), the spread and
-/// sensitivity options and the start button, disabled with `unavailable` as its hover text. Returns whether the
-/// button was clicked.
+/// sensitivity options and the start button, disabled with `unavailable` as its hover
+/// text. Returns whether the button was clicked.
 fn check_settings_ui(
     ui: &mut egui::Ui,
     check: &mut SimCheck,
