@@ -572,26 +572,16 @@ fn compare_motion(
     )?;
     measures.drift = drift;
     measures.one_step = checked;
-    measures.spread = match options.spread {
-        true => Some(reference_spread(
-            trained,
-            motion,
-            options,
-            &reference.dynamic,
-            say,
-        )?),
-        false => None,
-    };
-    measures.sensitivity = match options.sensitivity {
-        true => Some(reference_sensitivity(
-            trained,
-            motion,
-            options,
-            &reference.dynamic,
-            say,
-        )?),
-        false => None,
-    };
+    // The reference against other simulations of the motion, each when asked for.
+    let dynamic = &reference.dynamic;
+    measures.spread = options
+        .spread
+        .then(|| reference_spread(trained, motion, options, dynamic, say))
+        .transpose()?;
+    measures.sensitivity = options
+        .sensitivity
+        .then(|| reference_sensitivity(trained, motion, options, dynamic, say))
+        .transpose()?;
     let model = scene.fabric.cloth_model;
     let (mut network_metrics, network_objective) =
         sequence_mean_metrics(terms, &network, bodies.as_deref(), fps, model)?;
