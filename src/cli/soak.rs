@@ -412,6 +412,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
                 break;
             }
             TrainEvent::Validation(_)
+            | TrainEvent::Preparing(_)
             | TrainEvent::Checkpoint { .. }
             | TrainEvent::Stalled { .. }
             | TrainEvent::Paused

@@ -189,6 +189,16 @@ pub struct TrainArgs {
     /// docs/TRAINING.md round 19)
     #[arg(long, value_name = "WEIGHT", requires = "fit_reference")]
     pub fit_physics: Option<f64>,
+    /// Warm start: simulate every training motion once with our simulator (cached in the
+    /// run's reference/ folder, where `compare` finds it) and, for this many steps at the
+    /// start, fit the network to those frames alongside the paper's loss; then the paper's
+    /// loss alone (default 0 = off; 150-400 steps put the t-shirt's spin in the swinging
+    /// basin: docs/TRAINING.md rounds 21 and 22)
+    #[arg(long, value_name = "STEPS", conflicts_with = "fit_reference")]
+    pub warm_start_steps: Option<u64>,
+    /// L-BFGS iterations per frame of the warm start's simulation (10-1000; default 200)
+    #[arg(long, value_name = "N", requires = "warm_start_steps")]
+    pub warm_start_iterations: Option<usize>,
     /// Curriculum: the inertia target at the start of the run projects the network's own
     /// last velocity this much further (α in [0, 1]; default 0 = off), a negative damping
     /// that falls linearly to 0 over --momentum-boost-steps (experimental; docs/TRAINING.md
@@ -416,6 +426,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let by_steps = train.max_steps.is_some();
     let mut steps_per_sec = 0.0;
     let mut last = (0u64, 0.0f64);
+    let mut last_stage = String::new();
     loop {
         let Some(event) = handle.recv_timeout(Duration::from_millis(200)) else {
             bar.tick();
@@ -454,6 +465,13 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
                 r.slip_mm,
                 r.dead_units_pct
             )),
+            TrainEvent::Preparing(p) => {
+                bar.set_message(format!("{:.0} %", 100.0 * p.fraction()));
+                if p.stage != last_stage {
+                    say(p.stage.clone());
+                    last_stage = p.stage;
+                }
+            }
             TrainEvent::Warning(w) => say(format!("warning: {w}")),
             TrainEvent::Stalled {
                 step,

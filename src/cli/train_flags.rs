@@ -54,6 +54,8 @@ pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig 
         args.fit_physics => train.fit_physics_weight,
         args.momentum_boost => train.momentum_boost,
         args.momentum_boost_steps => train.momentum_boost_steps,
+        args.warm_start_steps => train.warm_start_steps,
+        args.warm_start_iterations => train.warm_start_iterations,
         args.lr_final_factor => train.lr_final_factor,
         args.dead_limit => train.dead_limit_pct,
     }
@@ -226,6 +228,25 @@ mod tests {
         assert_eq!(
             (train.momentum_boost, train.momentum_boost_steps),
             (0.3, 17)
+        );
+        // The warm start: its steps and iterations, never on top of the diagnostic fit.
+        let warm = Line::try_parse_from([
+            "train",
+            "--warm-start-steps",
+            "150",
+            "--warm-start-iterations",
+            "120",
+        ])
+        .unwrap();
+        let mut train = TrainConfig::default();
+        apply_flags(&warm.args, &mut train);
+        assert_eq!(
+            (train.warm_start_steps, train.warm_start_iterations),
+            (150, 120)
+        );
+        assert!(
+            Line::try_parse_from(["train", "--fit-reference", "r", "--warm-start-steps", "5"])
+                .is_err()
         );
         // Flags not given leave the defaults.
         let bare = Line::try_parse_from(["train"]).unwrap();

@@ -9,7 +9,7 @@ use neural_cloth_core::scene::Scene;
 use neural_cloth_core::scene::config::SceneConfig;
 use neural_cloth_model::ModelArtifact;
 use neural_cloth_physics::FabricParams;
-use neural_cloth_train::handle::{TrainCommand, TrainEvent, TrainerHandle};
+use neural_cloth_train::handle::{Preparing, TrainCommand, TrainEvent, TrainerHandle};
 use neural_cloth_train::{TrainConfig, TrainError};
 
 use super::error::AppError;
@@ -118,6 +118,8 @@ pub struct TrainingControl {
     pub latest_weights: Option<(u64, Arc<ModelArtifact>)>,
     /// Run directory of the current or last run.
     pub run_dir: Option<PathBuf>,
+    /// The work before the first step (the warm start's simulation), until a step arrives.
+    pub preparing: Option<Preparing>,
     /// The scene revision ([`crate::state::SceneState::revision`]) the current or last run
     /// was started on (`None`: no run started from this app since the last reset).
     pub scene_revision: Option<u64>,
@@ -157,6 +159,7 @@ impl TrainingControl {
             markers: Vec::new(),
             latest_weights: None,
             run_dir: None,
+            preparing: None,
             scene_revision: None,
             last_checkpoint: None,
             log: Vec::new(),
@@ -259,6 +262,7 @@ impl TrainingControl {
         self.latest_weights = None;
         self.last_checkpoint = None;
         self.run_dir = None;
+        self.preparing = None;
     }
 
     /// Shows a run opened from its folder (not while a run is active): its curves, its step
@@ -322,7 +326,18 @@ impl TrainingControl {
                 self.run_dir = Some(run_dir);
                 self.progress.step = step;
             }
+            TrainEvent::Preparing(p) => {
+                if self
+                    .preparing
+                    .as_ref()
+                    .is_none_or(|old| old.stage != p.stage)
+                {
+                    self.note(p.stage.clone());
+                }
+                self.preparing = Some(p);
+            }
             TrainEvent::Step(record) => {
+                self.preparing = None;
                 if let Some(prev) = self.history.train.last() {
                     let dt = record.wall_secs - prev.wall_secs;
                     let ds = record.step.saturating_sub(prev.step) as f64;
@@ -390,6 +405,7 @@ impl TrainingControl {
                 "⚠ training stalled at step {step}: {reason}; {remedy}"
             )),
             TrainEvent::Finished(result) => {
+                self.preparing = None;
                 if let Some(warning) = result.as_ref().ok().and_then(|s| s.health_warning()) {
                     self.note(format!("⚠ {warning}"));
                 }

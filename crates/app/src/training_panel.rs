@@ -1,6 +1,7 @@
-//! The Training panel: window length, frame rate and the fit check; Train, Pause/Resume,
-//! Stop and Reset (asked first, [`super::confirm_panel`]); the progress, dead units and what
-//! the preview shows. Training runs on the trainer's thread ([`super::training`]).
+//! The Training panel: window length, frame rate, the fit check and the warm start from
+//! simulation; Train, Pause/Resume, Stop and Reset (asked first, [`super::confirm_panel`]);
+//! the preparation's and the run's progress, dead units and what the preview shows. Training
+//! runs on the trainer's thread ([`super::training`]).
 
 use super::NeuralClothApp;
 use super::training::TrainingState;
@@ -38,6 +39,20 @@ impl NeuralClothApp {
                 .on_hover_text(
                     "Refuse a garment file that clearly does not fit the avatar (use Fit \
                      garment first); untick to train on it as it is",
+                );
+                ui.add_enabled(
+                    !state.is_active(),
+                    egui::DragValue::new(&mut self.state.train_config.warm_start_steps)
+                        .range(0..=100_000)
+                        .prefix("warm start from simulation: ")
+                        .suffix(" steps"),
+                )
+                .on_hover_text(
+                    "Simulate the training motions once with the reference simulator and fit \
+                     the network to them for this many steps at the start, alongside the \
+                     paper's loss (0 = off). Costs a simulation of every training motion \
+                     (minutes each); brings dynamics the paper's loss alone does not find \
+                     from the template (docs/TRAINING.md rounds 21 and 22)",
                 );
                 ui.horizontal_wrapped(|ui| {
                     let can_start = !state.is_active();
@@ -94,6 +109,13 @@ impl NeuralClothApp {
                         .text(text)
                         .animate(matches!(state, TrainingState::Running)),
                 );
+                if let Some(prep) = &self.state.training.preparing {
+                    ui.add(
+                        egui::ProgressBar::new(prep.fraction() as f32)
+                            .text(&prep.stage)
+                            .animate(true),
+                    );
+                }
                 if let TrainingState::Finished(Err(e)) = &state {
                     ui.colored_label(egui::Color32::from_rgb(255, 100, 90), e.to_string());
                 }

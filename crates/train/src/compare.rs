@@ -47,7 +47,10 @@ mod rigid;
 mod rows;
 mod spread;
 
-pub use cache::{REFERENCE_TOLERANCE, Reference, reference_dir, reference_for, simulation_for};
+pub use cache::{
+    REFERENCE_TOLERANCE, Reference, SimulatedScene, reference_dir, reference_for, simulation_for,
+    simulation_in,
+};
 pub use drift::{StateDrift, drift_window_frames, state_drift};
 pub use measure::{
     Amplitude, AmplitudeStats, DistanceStats, HEM_BAND, HemComparison, HemPair, MotionMeasures,

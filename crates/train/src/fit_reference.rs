@@ -7,19 +7,24 @@
 //!
 //! The frames are the PC2 caches `compare` writes in a run's `reference/` folder: one
 //! `<motion>-<iterations>it-<fps>fps-<key>.pc2` per motion (the `.static.pc2` quasi-static
-//! ones are not used), at the training rate.
+//! ones are not used), at the training rate. The training warm start
+//! ([`TrainConfig::warm_start_steps`](crate::TrainConfig::warm_start_steps)) fits to the same
+//! kind of frames for its first steps; its mirrored motions have none
+//! ([`FitReference::from_frames`]).
 
 use std::path::{Path, PathBuf};
 
+use neural_cloth_core::geometry::Vec3;
 use neural_cloth_core::io::export::read_pc2;
 
 use super::TrainError;
 
-/// Reference frames of every training motion, flattened `[T, V, 3]` per motion.
+/// Reference frames of the training motions, flattened `[T, V, 3]` per motion.
 #[derive(Clone, Debug)]
 pub struct FitReference {
-    /// Per motion of the dataset (same order), its frames.
-    motions: Vec<Vec<f32>>,
+    /// Per motion of the dataset (same order), its frames, or None for a motion without
+    /// simulated frames (a mirrored copy in the warm start).
+    motions: Vec<Option<Vec<f32>>>,
     /// Vertices per frame.
     vertices: usize,
 }
@@ -84,7 +89,7 @@ impl FitReference {
             if flat.iter().any(|c| !c.is_finite()) {
                 return Err(bad("non-finite positions".into()));
             }
-            loaded.push(flat);
+            loaded.push(Some(flat));
         }
         Ok(Self {
             motions: loaded,
@@ -92,27 +97,74 @@ impl FitReference {
         })
     }
 
-    /// Positions of the given `(motion, frame)` rows, flattened `[rows, V, 3]`; a frame past
-    /// the end of the reference takes its last frame.
-    pub fn rows(&self, rows: &[(usize, usize)]) -> Result<Vec<f32>, TrainError> {
+    /// The reference of simulated `frames` per motion of the dataset (same order; None for a
+    /// motion without them). Refused when a motion has no frames, a frame has not `vertices`
+    /// points or a position is not finite.
+    pub fn from_frames(
+        motions: Vec<Option<Vec<Vec<Vec3>>>>,
+        vertices: usize,
+    ) -> Result<Self, TrainError> {
+        let mut loaded = Vec::with_capacity(motions.len());
+        for (m, frames) in motions.into_iter().enumerate() {
+            let Some(frames) = frames else {
+                loaded.push(None);
+                continue;
+            };
+            if frames.is_empty() || frames.iter().any(|f| f.len() != vertices) {
+                return Err(TrainError::Data(format!(
+                    "the simulated frames of training motion {m} do not hold {vertices} points \
+                     per frame"
+                )));
+            }
+            let flat: Vec<f32> = frames
+                .iter()
+                .flatten()
+                .flat_map(|p| [p.x, p.y, p.z])
+                .collect();
+            if flat.iter().any(|c| !c.is_finite()) {
+                return Err(TrainError::Data(format!(
+                    "the simulated frames of training motion {m} are not finite"
+                )));
+            }
+            loaded.push(Some(flat));
+        }
+        Ok(Self {
+            motions: loaded,
+            vertices,
+        })
+    }
+
+    /// Positions of the given `(motion, frame)` rows, flattened `[rows, V, 3]`, and per row 1
+    /// where the motion has reference frames or 0 where it has none (its positions are then
+    /// zeros); a frame past the end of the reference takes its last frame.
+    pub fn rows(&self, rows: &[(usize, usize)]) -> Result<(Vec<f32>, Vec<f32>), TrainError> {
         let n = self.vertices * 3;
         let mut out = Vec::with_capacity(rows.len() * n);
+        let mut mask = Vec::with_capacity(rows.len());
         for &(m, f) in rows {
             let frames = self.motions.get(m).ok_or_else(|| {
                 TrainError::Data(format!("no reference frames for motion {m} of the batch"))
             })?;
-            let last = frames.len() / n - 1;
-            let f = f.min(last);
-            out.extend_from_slice(&frames[f * n..(f + 1) * n]);
+            match frames {
+                Some(frames) if frames.len() >= n => {
+                    let last = frames.len() / n - 1;
+                    let f = f.min(last);
+                    out.extend_from_slice(&frames[f * n..(f + 1) * n]);
+                    mask.push(1.0);
+                }
+                _ => {
+                    out.resize(out.len() + n, 0.0);
+                    mask.push(0.0);
+                }
+            }
         }
-        Ok(out)
+        Ok((out, mask))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use neural_cloth_core::geometry::Vec3;
     use neural_cloth_core::io::export::Pc2Writer;
 
     fn write(path: &Path, frames: &[Vec<Vec3>]) {
@@ -141,7 +193,8 @@ mod tests {
             &[frame(2.0, 0.0), frame(2.0, 1.0), frame(2.0, 2.0)],
         );
         let r = FitReference::load(dir.path(), ["spin", "walk"], 2).unwrap();
-        let rows = r.rows(&[(1, 1), (0, 2), (1, 7)]).unwrap();
+        let (rows, mask) = r.rows(&[(1, 1), (0, 2), (1, 7)]).unwrap();
+        assert_eq!(mask, vec![1.0; 3]);
         assert_eq!(
             rows,
             vec![
@@ -155,5 +208,24 @@ mod tests {
         let missing = FitReference::load(dir.path(), ["twirl"], 2).unwrap_err();
         assert!(missing.to_string().contains("'twirl'"), "{missing}");
         assert!(FitReference::load(dir.path(), ["walk"], 3).is_err());
+    }
+
+    #[test]
+    fn a_motion_without_simulated_frames_is_masked_out() {
+        let frames = |x: f32| {
+            Some(vec![
+                vec![Vec3::new(x, 0.0, 0.0)],
+                vec![Vec3::new(x, 1.0, 0.0)],
+            ])
+        };
+        // Motion 1 is a mirrored copy: no frames.
+        let r = FitReference::from_frames(vec![frames(1.0), None, frames(3.0)], 1).unwrap();
+        let (rows, mask) = r.rows(&[(0, 1), (1, 0), (2, 0)]).unwrap();
+        assert_eq!(mask, vec![1.0, 0.0, 1.0]);
+        assert_eq!(rows, vec![1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0]);
+        // Wrong vertex count or non-finite frames are refused.
+        assert!(FitReference::from_frames(vec![frames(1.0)], 2).is_err());
+        assert!(FitReference::from_frames(vec![frames(f32::NAN)], 1).is_err());
+        assert!(FitReference::from_frames(vec![Some(Vec::new())], 1).is_err());
     }
 }

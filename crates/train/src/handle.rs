@@ -99,6 +99,10 @@ pub enum TrainEvent {
         /// New learning rate.
         learning_rate: f64,
     },
+    /// Work before the first step that takes a while (the warm start's simulation of the
+    /// training motions); sent at most once per simulated frame, may be dropped under
+    /// back-pressure.
+    Preparing(Preparing),
     /// A problem found before training ([`super::preflight`]): the scene is unlikely to learn.
     Warning(String),
     /// Training stopped learning (dead units, or validation frozen); the remedy was applied.
@@ -126,6 +130,31 @@ pub enum TrainEvent {
     /// The run ended: a summary, or the error that stopped it (shared: events are cloned).
     Finished(Result<RunSummary, Arc<TrainError>>),
 }
+
+/// Progress of the work before the first step ([`TrainEvent::Preparing`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Preparing {
+    /// What is being done, in words ("simulating walk for the warm start (1 of 5)").
+    pub stage: String,
+    /// Units done of this stage.
+    pub done: usize,
+    /// Units in this stage.
+    pub total: usize,
+}
+
+impl Preparing {
+    /// Done fraction of the stage, in [0, 1].
+    pub fn fraction(&self) -> f64 {
+        match self.total {
+            0 => 0.0,
+            t => (self.done as f64 / t as f64).clamp(0.0, 1.0),
+        }
+    }
+}
+
+/// What a long preparation reports its progress to; returns false when the run was asked to
+/// stop (the preparation then ends with a cancelled error).
+pub type PrepareProgress<'a> = &'a mut dyn FnMut(Preparing) -> bool;
 
 /// Final numbers of a run.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -272,18 +301,20 @@ impl TrainerHandle {
         config: LoopConfig,
         notify: Option<Arc<dyn Fn() + Send + Sync>>,
     ) -> std::io::Result<Self> {
-        Self::spawn_with(move || Ok((session, config)), notify)
+        Self::spawn_with(move |_| Ok((session, config)), notify)
     }
 
     /// Like [`Self::spawn_session`], but builds the session on the trainer thread with
-    /// `prepare` (which may take seconds); its error ends the run with `Finished(Err)`.
+    /// `prepare` (which may take seconds, or minutes with the warm start: it reports to the
+    /// [`PrepareProgress`] it is given, which says false once the run is stopped); its error
+    /// ends the run with `Finished(Err)`.
     pub fn spawn_with<S, F>(
         prepare: F,
         notify: Option<Arc<dyn Fn() + Send + Sync>>,
     ) -> std::io::Result<Self>
     where
         S: Session + 'static,
-        F: FnOnce() -> Result<(S, LoopConfig), TrainError> + Send + 'static,
+        F: FnOnce(PrepareProgress<'_>) -> Result<(S, LoopConfig), TrainError> + Send + 'static,
     {
         let (cmd_tx, cmd_rx) = std::sync::mpsc::sync_channel(COMMAND_CAPACITY);
         let (ev_tx, ev_rx) = std::sync::mpsc::sync_channel(EVENT_CAPACITY);
@@ -293,7 +324,12 @@ impl TrainerHandle {
             .name("neural-cloth-trainer".into())
             .spawn(move || {
                 let emit = Emitter { tx: ev_tx, notify };
-                let result = prepare().and_then(|(mut session, config)| {
+                let stopping = stop_flag.clone();
+                let mut progress = |p: Preparing| {
+                    emit.offer(TrainEvent::Preparing(p));
+                    !stopping.load(Ordering::Relaxed)
+                };
+                let result = prepare(&mut progress).and_then(|(mut session, config)| {
                     run_loop(&mut session, config, &cmd_rx, &stop_flag, &emit)
                 });
                 // The session is dropped: give the buffers the allocator kept for the next

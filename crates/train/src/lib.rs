@@ -31,10 +31,13 @@ pub mod run_dir;
 pub mod session;
 pub mod trained;
 pub mod warm_start;
+pub mod warm_start_sim;
 
 pub use config::{BackendKind, BasisRowNorm, InertiaMode, TrainConfig};
 pub use eval::{EvalReport, evaluate};
-pub use handle::{LiveSetting, RunSummary, TrainCommand, TrainEvent, TrainerHandle};
+pub use handle::{
+    LiveSetting, PrepareProgress, Preparing, RunSummary, TrainCommand, TrainEvent, TrainerHandle,
+};
 pub use metrics::{MetricHistory, MetricRecord};
 pub use run_dir::{RunDir, RunMeta};
 pub use trained::{TrainedModel, load_trained};
@@ -227,7 +230,7 @@ impl Trainer {
         notify: Option<Arc<dyn Fn() + Send + Sync>>,
     ) -> Result<TrainerHandle, TrainError> {
         setup.train.validate(setup.scene.training_fps)?;
-        TrainerHandle::spawn_with(move || prepare(setup), notify)
+        TrainerHandle::spawn_with(move |progress| prepare_with(setup, progress), notify)
             .map_err(|e| TrainError::io(e, Path::new("trainer thread")))
     }
 }
@@ -247,6 +250,15 @@ pub fn device_for(backend: BackendKind, autodiff: bool) -> Device {
 /// when the newest is damaged, with a warning); a run with checkpoints of which none loads is
 /// an error, never a fresh start.
 pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainError> {
+    prepare_with(setup, &mut |_| true)
+}
+
+/// [`prepare`], reporting the long work before the first step (the warm start's simulation)
+/// to `progress`, which cancels it by returning false.
+pub fn prepare_with(
+    setup: TrainSetup,
+    progress: PrepareProgress<'_>,
+) -> Result<(NeuralSession, LoopConfig), TrainError> {
     alloc::keep_freed_buffers();
     let TrainSetup {
         scene,
@@ -347,8 +359,8 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
         descriptors: descriptors.clone(),
         terms,
         lbs,
-        avatar,
-        garment,
+        avatar: avatar.clone(),
+        garment: garment.clone(),
         train: train_data,
         validation,
         run,
@@ -363,6 +375,37 @@ pub fn prepare(setup: TrainSetup) -> Result<(NeuralSession, LoopConfig), TrainEr
     } else {
         (0, MetricHistory::default())
     };
+    if start_step < train.warm_start_steps {
+        let sim_scene = compare::SimulatedScene {
+            avatar: &avatar,
+            garment: &garment,
+            fabric: &fabric,
+            effects: scene.effects,
+        };
+        let warm = warm_start_sim::warm_start_reference(
+            sim_scene,
+            &run_root,
+            &scene.motions,
+            session.training_data(),
+            fps,
+            &train,
+            progress,
+        )?;
+        progress(Preparing {
+            stage: format!(
+                "warm start: steps {start_step}..{} also fit our simulator's frames of the {} \
+                 training motions ({} simulated now in {:.0} s, {} read from the run's cache)",
+                train.warm_start_steps,
+                warm.simulated + warm.cached,
+                warm.simulated,
+                warm.simulate_secs,
+                warm.cached
+            ),
+            done: 1,
+            total: 1,
+        });
+        session.set_warm_start_reference(warm.reference);
+    }
     let loop_config = loop_config(&train, run_root, start_step, history, warnings);
     Ok((session, loop_config))
 }

@@ -160,9 +160,15 @@ fn render_verdicts(s: &mut String, checks: &[TrainingCheck]) {
         };
         let mut row = |target: &str, value: String, met: Option<bool>| {
             // A run fitted to the simulator's frames measures the network, not the method.
-            let judged = match c.fitted_to_simulator {
-                true => "— (fitted to the simulator: a diagnostic)",
-                false => verdict(met),
+            // A warm-started run's minutes leave out the simulation of its training motions.
+            let judged = match (c.fitted_to_simulator, c.warm_start_steps) {
+                (true, _) => "— (fitted to the simulator: a diagnostic)".to_string(),
+                (false, 0) => verdict(met).to_string(),
+                (false, steps) => format!(
+                    "{} (warm start of {steps} steps from our simulator: its simulation is \
+                     not in the minutes)",
+                    verdict(met)
+                ),
             };
             let _ = writeln!(
                 s,
@@ -370,7 +376,19 @@ mod tests {
                 reference: ReferenceInfo::default(),
             },
             fitted_to_simulator: false,
+            warm_start_steps: 0,
         }
+    }
+
+    #[test]
+    fn a_warm_started_run_says_its_minutes_leave_out_the_simulation() {
+        let mut c = check(1.0, 0.145, 0.245);
+        c.warm_start_steps = 150;
+        let mut s = String::new();
+        render_training_checks(&mut s, &[c]);
+        assert!(s.contains(
+            "| 0.145 / 0.136 m | met (warm start of 150 steps from our simulator: its simulation is not in the minutes) |"
+        ), "{s}");
     }
 
     #[test]

@@ -21,9 +21,9 @@ use serde::Serialize;
 
 use neural_cloth_core::geometry::Vec3;
 use neural_cloth_core::io::export::{Pc2Writer, atomic::write_atomic, read_pc2};
-use neural_cloth_core::scene::Motion;
+use neural_cloth_core::scene::{Avatar, Garment, Motion, Scene};
 use neural_cloth_physics::simulator::{SimOptions, SimProgress, simulate};
-use neural_cloth_physics::{Effects, PhysicsError};
+use neural_cloth_physics::{Effects, FabricParams, PhysicsError};
 
 use super::super::run_dir::{avatar_fingerprint, garment_fingerprint};
 use super::super::trained::TrainedModel;
@@ -51,6 +51,31 @@ pub struct Reference {
     pub cached: bool,
     /// Seconds spent simulating now (0 when cached).
     pub simulate_secs: f64,
+}
+
+/// What a reference simulation depends on besides the motion and the options: the body, the
+/// garment, the fabric and the effects a run trains with.
+#[derive(Clone, Copy, Debug)]
+pub struct SimulatedScene<'a> {
+    /// The avatar.
+    pub avatar: &'a Avatar,
+    /// The garment.
+    pub garment: &'a Garment,
+    /// The fabric.
+    pub fabric: &'a FabricParams,
+    /// The effects.
+    pub effects: Effects,
+}
+
+impl<'a> From<&'a Scene> for SimulatedScene<'a> {
+    fn from(scene: &'a Scene) -> Self {
+        Self {
+            avatar: &scene.avatar,
+            garment: &scene.garment,
+            fabric: &scene.fabric,
+            effects: scene.effects,
+        }
+    }
 }
 
 /// What a cache key covers, written next to the frames.
@@ -120,12 +145,11 @@ fn file_safe(name: &str) -> String {
 
 /// The key record of `motion` (already resampled to the training rate) under `options`.
 fn key_record<'a>(
-    trained: &'a TrainedModel,
+    scene: SimulatedScene<'a>,
     motion: &'a Motion,
     options: &CompareOptions,
 ) -> Result<KeyRecord<'a>, TrainError> {
-    let scene = &trained.scene;
-    let garment = &scene.garment;
+    let garment = scene.garment;
     let mut h = Fnv(0xcbf29ce484222325);
     h.eat(CACHE_VERSION.as_bytes());
     h.eat(motion.name.as_bytes());
@@ -142,7 +166,7 @@ fn key_record<'a>(
         h.eat(&options.start_jitter_m.to_le_bytes());
     }
     let garment_fp = garment_fingerprint(garment);
-    let avatar_fp = avatar_fingerprint(&scene.avatar);
+    let avatar_fp = avatar_fingerprint(scene.avatar);
     h.eat(&garment_fp.to_le_bytes());
     h.eat(&avatar_fp.to_le_bytes());
     for (joints, weights) in garment.skin.joints.iter().zip(&garment.skin.weights) {
@@ -154,7 +178,7 @@ fn key_record<'a>(
         list.iter().for_each(|i| h.eat(&i.to_le_bytes()));
     }
     let json = |e: serde_json::Error| TrainError::Checkpoint(e.to_string());
-    h.eat(&serde_json::to_vec(&scene.fabric).map_err(json)?);
+    h.eat(&serde_json::to_vec(scene.fabric).map_err(json)?);
     h.eat(&serde_json::to_vec(&scene.effects).map_err(json)?);
     Ok(KeyRecord {
         version: CACHE_VERSION,
@@ -170,7 +194,7 @@ fn key_record<'a>(
         garment_vertices: garment.vertex_count(),
         avatar: &scene.avatar.name,
         avatar_fingerprint: avatar_fp,
-        fabric: &scene.fabric,
+        fabric: scene.fabric,
         effects: scene.effects,
         key: format!("{:016x}", h.0),
     })
@@ -202,7 +226,7 @@ fn write_frames(path: &Path, frames: &[Vec<Vec3>]) -> Result<(), TrainError> {
 /// Simulates `motion` (resampled to the training rate) with `effects`, reporting each frame
 /// as `phase`.
 fn simulate_with(
-    trained: &TrainedModel,
+    scene: SimulatedScene<'_>,
     motion: &Motion,
     effects: &Effects,
     options: &CompareOptions,
@@ -217,11 +241,10 @@ fn simulate_with(
         ..SimOptions::default()
     };
     let device = device_for(BackendKind::Cpu, false);
-    let scene = &trained.scene;
     let result = simulate(
-        &scene.avatar,
-        &scene.garment,
-        &scene.fabric,
+        scene.avatar,
+        scene.garment,
+        scene.fabric,
         effects,
         motion,
         motion.fps,
@@ -249,10 +272,22 @@ pub fn reference_for(
     progress: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
 ) -> Result<Reference, TrainError> {
     let started = Instant::now();
-    let (dynamic, path, dynamic_cached) =
-        cached_or_simulated(trained, motion, options, true, progress)?;
-    let (quasi_static, _, static_cached) =
-        cached_or_simulated(trained, motion, options, false, progress)?;
+    let (dynamic, path, dynamic_cached) = cached_or_simulated(
+        (&trained.scene).into(),
+        &trained.run.root,
+        motion,
+        options,
+        true,
+        progress,
+    )?;
+    let (quasi_static, _, static_cached) = cached_or_simulated(
+        (&trained.scene).into(),
+        &trained.run.root,
+        motion,
+        options,
+        false,
+        progress,
+    )?;
     let cached = dynamic_cached && static_cached;
     Ok(Reference {
         dynamic,
@@ -275,19 +310,41 @@ pub fn simulation_for(
     options: &CompareOptions,
     progress: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
 ) -> Result<(Vec<Vec<Vec3>>, PathBuf, bool), TrainError> {
-    cached_or_simulated(trained, motion, options, true, progress)
+    cached_or_simulated(
+        (&trained.scene).into(),
+        &trained.run.root,
+        motion,
+        options,
+        true,
+        progress,
+    )
+}
+
+/// [`simulation_for`] of a run that has no checkpoint yet: `scene` as the run trains on it (at
+/// its training rate), cached under `run_root/reference/` with the key `compare` uses, so
+/// that a later `compare` of the run reads the same file (the training warm start,
+/// [`crate::TrainConfig::warm_start_steps`]).
+pub fn simulation_in(
+    scene: SimulatedScene<'_>,
+    run_root: &Path,
+    motion: &Motion,
+    options: &CompareOptions,
+    progress: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
+) -> Result<(Vec<Vec<Vec3>>, PathBuf, bool), TrainError> {
+    cached_or_simulated(scene, run_root, motion, options, true, progress)
 }
 
 /// The simulation (`dynamic`) or the quasi-static solve of `motion`: read from its cache file
 /// when it holds the motion's frames, else simulated and written there (with the key record).
 fn cached_or_simulated(
-    trained: &TrainedModel,
+    scene: SimulatedScene<'_>,
+    run_root: &Path,
     motion: &Motion,
     options: &CompareOptions,
     dynamic: bool,
     progress: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
 ) -> Result<(Vec<Vec<Vec3>>, PathBuf, bool), TrainError> {
-    let record = key_record(trained, motion, options)?;
+    let record = key_record(scene, motion, options)?;
     let jitter = match options.start_jitter_m > 0.0 {
         true => format!("-jitter{}um", options.start_jitter_m * 1e6),
         false => String::new(),
@@ -299,27 +356,27 @@ fn cached_or_simulated(
         motion.fps,
         record.key
     );
-    let dir = reference_dir(&trained.run.root);
+    let dir = reference_dir(run_root);
     let path = dir.join(format!("{stem}.pc2"));
     let file = match dynamic {
         true => path.clone(),
         false => dir.join(format!("{stem}.static.pc2")),
     };
-    let (frames, vertices) = (motion.frames.len(), trained.scene.garment.vertex_count());
+    let (frames, vertices) = (motion.frames.len(), scene.garment.vertex_count());
     if options.use_cache
         && let Some(cached) = read_cached(&file, frames, vertices)
     {
         return Ok((cached, path, true));
     }
     let effects = Effects {
-        dynamics: dynamic && trained.scene.effects.dynamics,
-        ..trained.scene.effects
+        dynamics: dynamic && scene.effects.dynamics,
+        ..scene.effects
     };
     let phase = match dynamic {
         true => ComparePhase::Simulating,
         false => ComparePhase::SimulatingStatic,
     };
-    let simulated = simulate_with(trained, motion, &effects, options, phase, progress)?;
+    let simulated = simulate_with(scene, motion, &effects, options, phase, progress)?;
     if options.use_cache {
         std::fs::create_dir_all(&dir).map_err(|e| TrainError::io(e, &dir))?;
         write_frames(&file, &simulated)?;

@@ -49,6 +49,12 @@ pub struct TrainingCheck {
     /// the field existed.
     #[serde(default)]
     pub fitted_to_simulator: bool,
+    /// Steps of the run's warm start from our simulator's frames of its training motions
+    /// ([`TrainConfig::warm_start_steps`](crate::TrainConfig::warm_start_steps)); 0 (also in
+    /// records made before the field existed) when none. The minutes of such a run do not
+    /// include the simulation.
+    #[serde(default)]
+    pub warm_start_steps: u64,
 }
 
 impl TrainingCheck {
@@ -101,6 +107,7 @@ impl TrainingCheck {
                 iterations: report.options.iterations,
                 motion: m.clone(),
                 fitted_to_simulator: trained.meta.train.fit_reference.is_some(),
+                warm_start_steps: trained.meta.train.warm_start_steps,
             })
             .collect()
     }

@@ -74,7 +74,8 @@ pub struct NeuralSession {
     init_std: f64,
     /// The gradient filter of [`TrainConfig::precondition_stiffness`].
     filter: FilterCache,
-    /// Frames of [`TrainConfig::fit_reference`], loaded when the run is prepared.
+    /// Frames of [`TrainConfig::fit_reference`], loaded when the run is prepared, or of the
+    /// warm start ([`TrainConfig::warm_start_steps`]) until its steps are done.
     reference: Option<FitReference>,
 }
 
@@ -432,6 +433,7 @@ impl Session for NeuralSession {
             grads,
         )?;
         self.filter.count_step();
+        self.end_warm_start();
         let metrics = self.step_metrics(&x, contacts, friction, b, predicted)?;
         if !self.config.keep_posed_bodies {
             self.train.forget_bodies();

@@ -83,8 +83,9 @@ impl NeuralSession {
 impl NeuralSession {
     /// The gradients of a step: the physics loss (through the gradient `filter` when one acts;
     /// rows of `x` are sample-major, still windows first), or when fitting to reference
-    /// frames the fit plus the physics loss at [`crate::TrainConfig::fit_physics_weight`], in
-    /// which case `loss` becomes the fit's.
+    /// frames ([`NeuralSession::fitting`]) the fit of the moving windows plus the physics
+    /// loss: at [`crate::TrainConfig::fit_physics_weight`] for the diagnostic fit, in which
+    /// case `loss` becomes the fit's, at 1 for the warm start.
     pub(super) fn step_gradients(
         &mut self,
         filter: Option<&GradientFilter>,
@@ -94,10 +95,13 @@ impl NeuralSession {
         batch: &Batch,
         loss: &mut f64,
     ) -> Result<Gradients, TrainError> {
-        let weight = match self.reference {
-            Some(_) => self.config.fit_physics_weight,
-            None => 1.0,
+        // The diagnostic fit weighs the physics as configured; the warm start keeps it whole.
+        let fitting = self.fitting();
+        let weight = match fitting && self.config.fit_reference.is_some() {
+            true => self.config.fit_physics_weight,
+            false => 1.0,
         };
+        let fit_samples = losses.still..losses.moving_end;
         let physics = match filter {
             _ if weight == 0.0 => None,
             None => Some(losses.total),
@@ -129,13 +133,16 @@ impl NeuralSession {
                 )?)
             }
         };
-        if self.reference.is_none() {
+        if !fitting {
             return physics
                 .map(|p| p.backward())
                 .ok_or_else(|| TrainError::Data("no loss to descend".into()));
         }
-        let fit = self.reference_loss(x_net, batch)?;
-        *loss = fit.clone().into_scalar::<f64>();
+        let fit = self.reference_loss(x_net, batch, fit_samples)?;
+        // The diagnostic logs the fit's loss; the warm start keeps the paper's on the curve.
+        if self.config.fit_reference.is_some() {
+            *loss = fit.clone().into_scalar::<f64>();
+        }
         Ok(match physics {
             Some(p) => (fit + p.mul_scalar(weight)).backward(),
             None => fit.backward(),
