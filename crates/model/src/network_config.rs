@@ -1,8 +1,9 @@
 //! The architecture settings of [`super::network::ClothNet`] ([`ClothNetConfig`], with its
 //! validation and the builder that initialises a network as the official code does).
 
+use burn::module::{Module, ModuleMapper, Param};
 use burn::nn::{GruConfig, Initializer, Linear};
-use burn::tensor::Device;
+use burn::tensor::{Device, Tensor};
 use serde::{Deserialize, Serialize};
 
 use super::ModelError;
@@ -305,7 +306,7 @@ impl ClothNetConfig {
                 ),
                 bias: None,
             });
-        Ok(ClothNet {
+        let net = ClothNet {
             static_encoder,
             dynamic_encoder,
             entangled_encoder,
@@ -320,7 +321,23 @@ impl ClothNetConfig {
             input_joints,
             vertices,
             latent: self.latent,
-        })
+        };
+        // burn draws a parameter's initial values at its first use: draw them all now, in
+        // module order, so that the weights depend on the device's seed alone and not on what
+        // else drew from it before the first forward pass (two runs prepared with one seed in
+        // one process started from different weights).
+        Ok(net.map(&mut Materialise))
+    }
+}
+
+/// Takes each float parameter's value (which draws a lazily initialised one) and puts it back
+/// unchanged.
+struct Materialise;
+
+impl ModuleMapper for Materialise {
+    fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
+        let (id, tensor, mapper) = param.consume();
+        Param::from_mapped_value(id, tensor, mapper)
     }
 }
 

@@ -393,13 +393,9 @@ pub fn prepare_with(
         )?;
         progress(Preparing {
             stage: format!(
-                "warm start: steps {start_step}..{} also fit our simulator's frames of the {} \
+                "warm start: steps {start_step}..{} also fit our simulator's frames of the \
                  training motions ({} simulated now in {:.0} s, {} read from the run's cache)",
-                train.warm_start_steps,
-                warm.simulated + warm.cached,
-                warm.simulated,
-                warm.simulate_secs,
-                warm.cached
+                train.warm_start_steps, warm.simulated, warm.simulate_secs, warm.cached
             ),
             done: 1,
             total: 1,

@@ -116,3 +116,24 @@ fn the_momentum_boost_changes_the_inertia_loss_until_its_schedule_ends() {
     assert_ne!(first, plain, "the boost acts on the first step's inertia");
     assert_eq!(after, plain, "past its schedule the boost is off");
 }
+
+/// Regression: burn draws a parameter's initial values at its first use, so two runs prepared
+/// with one seed in one process (the app training twice, the tests) started from different
+/// weights: the second drew after the first one's draws. The network now draws them all when
+/// it is built.
+#[test]
+fn two_runs_prepared_with_one_seed_in_one_process_start_from_the_same_weights() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = TrainConfig::default();
+    let mut a = session_with(config.clone(), &dir.path().join("a"));
+    let mut b = session_with(config, &dir.path().join("b"));
+    let windows = a.train.sample_windows(4, &mut a.rng);
+    assert_eq!(windows, b.train.sample_windows(4, &mut b.rng));
+    let batch = a
+        .train
+        .batch_with_still(&windows, 0, a.batch_frames(), 3, &a.garment.skin);
+    // The first session's forward pass draws nothing that the second one's weights see.
+    let (xa, _) = a.predict(&batch, 0, 0);
+    let (xb, _) = b.predict(&batch, 0, 0);
+    assert_eq!(xa.into_data(), xb.into_data());
+}
