@@ -196,6 +196,12 @@ pub struct TrainArgs {
     /// basin: docs/TRAINING.md rounds 21 and 22)
     #[arg(long, value_name = "STEPS", conflicts_with = "fit_reference")]
     pub warm_start_steps: Option<u64>,
+    /// Train without the left/right mirrored copies of the motions (default: with them).
+    /// With --warm-start-steps, the copies have no simulated frames and, trained by the
+    /// paper's loss alone, pull the swing back (the spin alone: 9.1 mm from the simulator
+    /// without them, 17.8 with them; docs/TRAINING.md round 22)
+    #[arg(long)]
+    pub no_mirror: bool,
     /// L-BFGS iterations per frame of the warm start's simulation (10-1000; default 200)
     #[arg(long, value_name = "N", requires = "warm_start_steps")]
     pub warm_start_iterations: Option<usize>,

@@ -92,6 +92,9 @@ pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig 
     if args.skip_fit_check {
         train.fit_check = false;
     }
+    if args.no_mirror {
+        train.mirror_poses = false;
+    }
     model
 }
 
@@ -236,6 +239,7 @@ mod tests {
             "150",
             "--warm-start-iterations",
             "120",
+            "--no-mirror",
         ])
         .unwrap();
         let mut train = TrainConfig::default();
@@ -244,6 +248,7 @@ mod tests {
             (train.warm_start_steps, train.warm_start_iterations),
             (150, 120)
         );
+        assert!(!train.mirror_poses);
         assert!(
             Line::try_parse_from(["train", "--fit-reference", "r", "--warm-start-steps", "5"])
                 .is_err()

@@ -272,22 +272,12 @@ pub fn reference_for(
     progress: &mut dyn FnMut(ComparePhase, usize, usize) -> bool,
 ) -> Result<Reference, TrainError> {
     let started = Instant::now();
-    let (dynamic, path, dynamic_cached) = cached_or_simulated(
-        (&trained.scene).into(),
-        &trained.run.root,
-        motion,
-        options,
-        true,
-        progress,
-    )?;
-    let (quasi_static, _, static_cached) = cached_or_simulated(
-        (&trained.scene).into(),
-        &trained.run.root,
-        motion,
-        options,
-        false,
-        progress,
-    )?;
+    let scene = SimulatedScene::from(&trained.scene);
+    let mut solve = |dynamic: bool| {
+        cached_or_simulated(scene, &trained.run.root, motion, options, dynamic, progress)
+    };
+    let (dynamic, path, dynamic_cached) = solve(true)?;
+    let (quasi_static, _, static_cached) = solve(false)?;
     let cached = dynamic_cached && static_cached;
     Ok(Reference {
         dynamic,
