@@ -276,8 +276,9 @@ pub struct TrainConfig {
     /// motion it trains on, but does not find them from the template (docs/TRAINING.md rounds
     /// 21 and 22): this is the way in. Still unsupervised (the only data is our simulator's
     /// answer for the training motions), at the price of simulating them. Still, augmented
-    /// and mirrored windows, which have no simulated frames, keep the paper's loss alone.
-    /// 0..=1000000.
+    /// and mirrored windows, which have no simulated frames, keep the paper's loss alone; the
+    /// mirrored ones then pull the swing back (the spin alone: 17.8 mm from the simulator with
+    /// [`TrainConfig::mirror_poses`], 9.1 without, round 22). 0..=1000000.
     pub warm_start_steps: u64,
     /// L-BFGS iterations per frame of the warm start's simulation, 10..=1000, default 200
     /// (fewer can settle a fast motion on another branch: at 40 and 100 iterations the

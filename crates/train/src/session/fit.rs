@@ -44,15 +44,13 @@ impl NeuralSession {
     }
 
     /// Forgets the warm start's frames once its steps are done (they take the memory of the
-    /// training motions' simulation); true when it did.
-    pub(super) fn end_warm_start(&mut self) -> bool {
-        let done = self.config.fit_reference.is_none()
-            && self.reference.is_some()
-            && self.filter.steps_taken() >= self.config.warm_start_steps;
-        if done {
+    /// training motions' simulation).
+    pub(super) fn end_warm_start(&mut self) {
+        if self.config.fit_reference.is_none()
+            && self.filter.steps_taken() >= self.config.warm_start_steps
+        {
             self.reference = None;
         }
-        done
     }
 
     /// The mass-weighted squared distance `Σ m |x - x_sim|² / (2Δt²)` (batch mean) of the
