@@ -1,5 +1,5 @@
-//! The Training panel: window length, frame rate, the fit check and the warm start from
-//! simulation; Train, Pause/Resume, Stop and Reset (asked first, [`super::confirm_panel`]);
+//! The Training panel: window length, frame rate, the fit check, the warm start from
+//! simulation and the mirrored copies; Train, Pause/Resume, Stop and Reset (asked first, [`super::confirm_panel`]);
 //! the preparation's and the run's progress, dead units and what the preview shows. Training
 //! runs on the trainer's thread ([`super::training`]).
 
@@ -40,20 +40,32 @@ impl NeuralClothApp {
                     "Refuse a garment file that clearly does not fit the avatar (use Fit \
                      garment first); untick to train on it as it is",
                 );
-                ui.add_enabled(
-                    !state.is_active(),
-                    egui::DragValue::new(&mut self.state.train_config.warm_start_steps)
-                        .range(0..=100_000)
-                        .prefix("warm start from simulation: ")
-                        .suffix(" steps"),
-                )
-                .on_hover_text(
-                    "Simulate the training motions once with the reference simulator and fit \
-                     the network to them for this many steps at the start, alongside the \
-                     paper's loss (0 = off). Costs a simulation of every training motion \
-                     (minutes each); brings dynamics the paper's loss alone does not find \
-                     from the template (docs/TRAINING.md rounds 21 and 22)",
-                );
+                ui.horizontal(|ui| {
+                    let cfg = &mut self.state.train_config;
+                    ui.add_enabled(
+                        !state.is_active(),
+                        egui::DragValue::new(&mut cfg.warm_start_steps)
+                            .range(0..=100_000)
+                            .prefix("warm start: ")
+                            .suffix(" steps"),
+                    )
+                    .on_hover_text(
+                        "Simulate the training motions once with the reference simulator and \
+                         fit the network to them for this many steps at the start, alongside \
+                         the paper's loss (0 = off). Costs a simulation of every training \
+                         motion (minutes each); brings dynamics the paper's loss alone does \
+                         not find from the template (docs/TRAINING.md rounds 21 and 22)",
+                    );
+                    ui.add_enabled(
+                        !state.is_active(),
+                        egui::Checkbox::new(&mut cfg.mirror_poses, "mirrored copies"),
+                    )
+                    .on_hover_text(
+                        "Train on left/right mirrored copies of the motions too. With the warm \
+                         start, untick it: the copies have no simulated frames and pull the \
+                         swing back (docs/TRAINING.md round 22)",
+                    );
+                });
                 ui.horizontal_wrapped(|ui| {
                     let can_start = !state.is_active();
                     if ui
