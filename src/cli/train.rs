@@ -202,6 +202,12 @@ pub struct TrainArgs {
     /// without them, 17.8 with them; docs/TRAINING.md round 22)
     #[arg(long)]
     pub no_mirror: bool,
+    /// Experimental: the warm start also fits the mirrored copies, to the mirror image of
+    /// their motion's simulation when the garment and body are symmetric, else to their own
+    /// simulation. Measured worse: the spin alone 26.8 mm from the simulator against 17.8
+    /// without it (docs/TRAINING.md round 23)
+    #[arg(long, requires = "warm_start_steps", conflicts_with = "no_mirror")]
+    pub warm_start_mirror_frames: bool,
     /// L-BFGS iterations per frame of the warm start's simulation (10-1000; default 200)
     #[arg(long, value_name = "N", requires = "warm_start_steps")]
     pub warm_start_iterations: Option<usize>,

@@ -95,6 +95,9 @@ pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig 
     if args.no_mirror {
         train.mirror_poses = false;
     }
+    if args.warm_start_mirror_frames {
+        train.warm_start_mirror_frames = true;
+    }
     model
 }
 
@@ -249,6 +252,18 @@ mod tests {
             (150, 120)
         );
         assert!(!train.mirror_poses);
+        assert!(!train.warm_start_mirror_frames);
+        let reflected = Line::try_parse_from([
+            "train",
+            "--warm-start-steps",
+            "150",
+            "--warm-start-mirror-frames",
+        ])
+        .unwrap();
+        let mut train = TrainConfig::default();
+        apply_flags(&reflected.args, &mut train);
+        assert!(train.warm_start_mirror_frames && train.mirror_poses);
+        assert!(Line::try_parse_from(["train", "--warm-start-mirror-frames"]).is_err());
         assert!(
             Line::try_parse_from(["train", "--fit-reference", "r", "--warm-start-steps", "5"])
                 .is_err()

@@ -276,14 +276,22 @@ pub struct TrainConfig {
     /// motion it trains on, but does not find them from the template (docs/TRAINING.md rounds
     /// 21 and 22): this is the way in. Still unsupervised (the only data is our simulator's
     /// answer for the training motions), at the price of simulating them. Still, augmented
-    /// and mirrored windows, which have no simulated frames, keep the paper's loss alone; the
-    /// mirrored ones then pull the swing back (the spin alone: 17.8 mm from the simulator with
-    /// [`TrainConfig::mirror_poses`], 9.1 without, round 22). 0..=1000000.
+    /// and mirrored windows keep the paper's loss alone (for the mirrored ones see
+    /// [`TrainConfig::warm_start_mirror_frames`]); the mirrored ones then pull the swing back
+    /// (the spin alone: 17.8 mm from the simulator with [`TrainConfig::mirror_poses`], 9.1
+    /// without, round 22). 0..=1000000.
     pub warm_start_steps: u64,
     /// L-BFGS iterations per frame of the warm start's simulation, 10..=1000, default 200
     /// (fewer can settle a fast motion on another branch: at 40 and 100 iterations the
     /// t-shirt's spin whirls the other way, docs/TRAINING.md round 21).
     pub warm_start_iterations: usize,
+    /// Experimental, default false: the warm start also fits the mirrored copies of the
+    /// training motions, to the mirror image of their motion's simulation where the garment
+    /// and body are symmetric ([`crate::warm_start_mirror`]), else to a simulation of their
+    /// own. Measured worse (docs/TRAINING.md round 23: the spin alone 26.8 mm from the
+    /// simulator against 17.8 without it; after a 450-step fit the network is still 26.0 mm
+    /// from the frames it fits), so off. Needs `mirror_poses`.
+    pub warm_start_mirror_frames: bool,
 }
 
 impl Default for TrainConfig {
@@ -331,6 +339,7 @@ impl Default for TrainConfig {
             momentum_boost_steps: 0,
             warm_start_steps: 0,
             warm_start_iterations: 200,
+            warm_start_mirror_frames: false,
         }
     }
 }
@@ -585,6 +594,12 @@ impl TrainConfig {
             "10..=1000",
         )?;
         check(
+            !self.warm_start_mirror_frames || (self.warm_start_steps > 0 && self.mirror_poses),
+            "warm_start_mirror_frames",
+            self.warm_start_mirror_frames,
+            "false unless there is a warm start and mirrored copies (mirror_poses)",
+        )?;
+        check(
             self.warm_start_steps == 0 || self.fit_reference.is_none(),
             "warm_start_steps",
             self.warm_start_steps,
@@ -833,6 +848,23 @@ mod tests {
             ..Default::default()
         };
         assert!(warm.validate(30.0).is_ok());
+        let mirror_frames = TrainConfig {
+            warm_start_mirror_frames: true,
+            ..warm.clone()
+        };
+        assert!(mirror_frames.validate(30.0).is_ok());
+        for bad in [
+            TrainConfig {
+                mirror_poses: false,
+                ..mirror_frames.clone()
+            },
+            TrainConfig {
+                warm_start_steps: 0,
+                ..mirror_frames
+            },
+        ] {
+            assert_eq!(refused(bad), "warm_start_mirror_frames");
+        }
         // The momentum boost: in [0, 1], with a schedule length.
         for (boost, steps, field) in [
             (-0.1, 100, "momentum_boost"),

@@ -31,6 +31,7 @@ pub mod run_dir;
 pub mod session;
 pub mod trained;
 pub mod warm_start;
+pub mod warm_start_mirror;
 pub mod warm_start_sim;
 
 pub use config::{BackendKind, BasisRowNorm, InertiaMode, TrainConfig};
@@ -391,10 +392,16 @@ pub fn prepare_with(
             &train,
             progress,
         )?;
+        let mirrors = match (warm.reflected, &warm.not_reflected) {
+            (0, None) => String::new(),
+            (n, None) => format!("; {n} mirrored copies reflected, the scene being symmetric"),
+            (_, Some(why)) => format!("; mirrored copies simulated: {why}"),
+        };
         progress(Preparing {
             stage: format!(
                 "warm start: steps {start_step}..{} also fit our simulator's frames of the \
-                 training motions ({} simulated now in {:.0} s, {} read from the run's cache)",
+                 training motions ({} simulated now in {:.0} s, {} read from the run's \
+                 cache{mirrors})",
                 train.warm_start_steps, warm.simulated, warm.simulate_secs, warm.cached
             ),
             done: 1,

@@ -9,7 +9,9 @@
 //! is a resting point of the same loss (27.7 mm). A short fit (150 steps) is enough to put
 //! the descent in the swinging basin. The simulations are cached in the run's `reference/`
 //! folder under the key `compare` uses, so that checking the run against the simulator reads
-//! them again instead of simulating.
+//! them again instead of simulating. With [`TrainConfig::warm_start_mirror_frames`]
+//! (experimental, round 23) the mirrored copies of the motions get frames too: reflected when
+//! the scene is symmetric ([`crate::warm_start_mirror`]), else simulated.
 
 use std::path::Path;
 use std::time::Instant;
@@ -22,16 +24,22 @@ use super::compare::{CompareOptions, ComparePhase, SimulatedScene, simulation_in
 use super::data::Dataset;
 use super::fit_reference::FitReference;
 use super::handle::{PrepareProgress, Preparing};
+use super::warm_start_mirror::MirrorMap;
 use super::{TrainConfig, TrainError};
 
 /// The warm start's reference and what it cost.
 pub struct WarmStart {
-    /// Simulated frames per motion of the training dataset (none for its mirrored copies).
+    /// Simulated frames per motion of the training dataset (its mirrored copies included with
+    /// [`TrainConfig::warm_start_mirror_frames`], else none for them).
     pub reference: FitReference,
-    /// Training motions simulated now (the others were read from the run's cache).
+    /// Motions simulated now (the others were read from the run's cache or reflected).
     pub simulated: usize,
-    /// Training motions read from the cache.
+    /// Motions read from the cache.
     pub cached: usize,
+    /// Mirrored copies whose frames are the reflection of their motion's simulation.
+    pub reflected: usize,
+    /// Why mirrored copies were simulated rather than reflected, when they were.
+    pub not_reflected: Option<String>,
     /// Seconds spent simulating now.
     pub simulate_secs: f64,
 }
@@ -39,7 +47,9 @@ pub struct WarmStart {
 /// Simulates (or reads from `run_root/reference/`) every train-split motion of `motions` at
 /// `fps` with [`TrainConfig::warm_start_iterations`], and lines the frames up with the
 /// motions of `dataset` (the training dataset built from the same motions: each motion
-/// followed by its mirrored copy when mirroring, which has no simulated frames).
+/// followed by its mirrored copy when [`TrainConfig::mirror_poses`]: without frames, or with
+/// [`TrainConfig::warm_start_mirror_frames`] the reflection of the motion's when the scene is
+/// symmetric, else simulated too).
 pub fn warm_start_reference(
     scene: SimulatedScene<'_>,
     run_root: &Path,
@@ -53,22 +63,18 @@ pub fn warm_start_reference(
         iterations: config.warm_start_iterations,
         ..CompareOptions::default()
     };
-    let training: Vec<&Motion> = motions
-        .iter()
-        .filter(|(_, split)| *split == Split::Train)
-        .map(|(m, _)| m)
-        .collect();
-    let count = training.len();
+    let mut training: Vec<Motion> = Vec::new();
+    for (motion, _) in motions.iter().filter(|(_, split)| *split == Split::Train) {
+        training.push(motion.resample(fps).map_err(ModelError::from)?);
+    }
     let started = Instant::now();
-    let (mut simulated, mut cached) = (0, 0);
-    let mut frames: Vec<(String, Vec<Vec<Vec3>>)> = Vec::with_capacity(count);
-    for (index, motion) in training.into_iter().enumerate() {
-        let motion = motion.resample(fps).map_err(ModelError::from)?;
+    let (mut simulated, mut cached, mut reflected) = (0, 0, 0);
+    let mut not_reflected = None;
+    let mut frames: Vec<(String, Vec<Vec<Vec3>>)> = Vec::with_capacity(2 * training.len());
+    let mut simulate = |motion: &Motion, label: String| {
         let stage = format!(
-            "simulating {} for the warm start ({} of {count}, {} iterations per frame)",
-            motion.name,
-            index + 1,
-            options.iterations
+            "simulating {} for the warm start ({label}, {} iterations per frame)",
+            motion.name, options.iterations
         );
         let mut say = |_: ComparePhase, done: usize, total: usize| {
             progress(Preparing {
@@ -77,12 +83,34 @@ pub fn warm_start_reference(
                 total,
             })
         };
-        let (sim, _, was_cached) = simulation_in(scene, run_root, &motion, &options, &mut say)?;
+        let (sim, _, was_cached) = simulation_in(scene, run_root, motion, &options, &mut say)?;
         match was_cached {
             true => cached += 1,
             false => simulated += 1,
         }
-        frames.push((motion.name.clone(), sim));
+        Ok::<_, TrainError>(sim)
+    };
+    let count = training.len();
+    for (index, motion) in training.iter().enumerate() {
+        let label = format!("{} of {count}", index + 1);
+        let sim = simulate(motion, label.clone())?;
+        if config.mirror_poses && config.warm_start_mirror_frames {
+            let mirrored = motion.mirrored(&scene.avatar.skeleton);
+            let copy = match MirrorMap::for_scene(scene.avatar, scene.garment, motion, &mirrored) {
+                Ok(map) => {
+                    reflected += 1;
+                    map.reflect_frames(&sim)
+                }
+                Err(why) => {
+                    not_reflected = Some(why);
+                    simulate(&mirrored, format!("{label}, mirrored copy"))?
+                }
+            };
+            frames.push((motion.name.clone(), sim));
+            frames.push((mirrored.name, copy));
+        } else {
+            frames.push((motion.name.clone(), sim));
+        }
     }
     let reference = FitReference::from_frames(
         line_up(&dataset_names(dataset), frames),
@@ -92,10 +120,11 @@ pub fn warm_start_reference(
         reference,
         simulated,
         cached,
-        simulate_secs: if simulated > 0 {
-            started.elapsed().as_secs_f64()
-        } else {
-            0.0
+        reflected,
+        not_reflected,
+        simulate_secs: match simulated > 0 {
+            true => started.elapsed().as_secs_f64(),
+            false => 0.0,
         },
     })
 }
@@ -106,7 +135,8 @@ fn dataset_names(dataset: &Dataset) -> Vec<&str> {
 }
 
 /// Per name of `names` (the dataset's motions: each training motion, then perhaps its
-/// mirrored copy), the next simulated motion's frames when it has that name, else None.
+/// mirrored copy), the next simulated motion's frames when it has that name, else None (a
+/// dataset built with other motions than the ones simulated).
 fn line_up<T>(names: &[&str], simulated: Vec<(String, T)>) -> Vec<Option<T>> {
     let mut next = simulated.into_iter().peekable();
     names
