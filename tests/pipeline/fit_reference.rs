@@ -241,6 +241,33 @@ fn the_warm_start_fits_our_simulation_for_its_steps_and_compare_reads_it() {
     assert!(cancelled.is_err());
 }
 
+/// The scene's spin at 30 fps, its mirrored copy and the scene's mirror correspondence.
+fn spin_and_its_mirror(
+    scene: &neural_cloth::scene::Scene,
+) -> (
+    neural_cloth::scene::Motion,
+    neural_cloth::scene::Motion,
+    neural_cloth::train::warm_start_mirror::MirrorMap,
+) {
+    let spin = scene
+        .motions
+        .iter()
+        .map(|(m, _)| m)
+        .find(|m| m.name == "spin")
+        .unwrap()
+        .resample(30.0)
+        .unwrap();
+    let mirrored = spin.mirrored(&scene.avatar.skeleton);
+    let map = neural_cloth::train::warm_start_mirror::MirrorMap::for_scene(
+        &scene.avatar,
+        &scene.garment,
+        &spin,
+        &mirrored,
+    )
+    .unwrap();
+    (spin, mirrored, map)
+}
+
 /// Issue 11 round 23: on a symmetric scene (the built-in mannequin and t-shirt), the mirror
 /// image of a motion's simulation is the simulation of its mirrored copy, so the warm start
 /// with `warm_start_mirror_frames` reflects the frames instead of simulating the copies
@@ -252,16 +279,7 @@ fn the_mirror_image_of_a_simulation_is_the_simulation_of_the_mirrored_motion() {
 
     let dir = tempfile::tempdir().unwrap();
     let scene = build_builtin(&SceneConfig::from_toml_str(TINY).unwrap()).unwrap();
-    let spin = scene
-        .motions
-        .iter()
-        .map(|(m, _)| m)
-        .find(|m| m.name == "spin")
-        .unwrap()
-        .resample(30.0)
-        .unwrap();
-    let mirrored = spin.mirrored(&scene.avatar.skeleton);
-    let map = MirrorMap::for_scene(&scene.avatar, &scene.garment, &spin, &mirrored).unwrap();
+    let (spin, mirrored, map) = spin_and_its_mirror(&scene);
     let options = CompareOptions {
         iterations: 10,
         use_cache: false,
@@ -339,20 +357,10 @@ fn the_mirror_image_of_a_simulation_is_the_simulation_of_the_mirrored_motion() {
 #[ignore]
 fn the_mirror_image_of_the_default_tshirt_spin() {
     use neural_cloth::train::compare::{CompareOptions, SimulatedScene, simulation_in};
-    use neural_cloth::train::warm_start_mirror::MirrorMap;
 
     let dir = tempfile::tempdir().unwrap();
     let scene = build_builtin(&SceneConfig::default_scene()).unwrap();
-    let spin = scene
-        .motions
-        .iter()
-        .map(|(m, _)| m)
-        .find(|m| m.name == "spin")
-        .unwrap()
-        .resample(30.0)
-        .unwrap();
-    let mirrored = spin.mirrored(&scene.avatar.skeleton);
-    let map = MirrorMap::for_scene(&scene.avatar, &scene.garment, &spin, &mirrored).unwrap();
+    let (spin, mirrored, map) = spin_and_its_mirror(&scene);
     let options = CompareOptions {
         iterations: 200,
         use_cache: false,
