@@ -94,23 +94,24 @@ pub fn warm_start_reference(
     for (index, motion) in training.iter().enumerate() {
         let label = format!("{} of {count}", index + 1);
         let sim = simulate(motion, label.clone())?;
+        let mut copy = None;
         if config.mirror_poses && config.warm_start_mirror_frames {
             let mirrored = motion.mirrored(&scene.avatar.skeleton);
-            let copy = match MirrorMap::for_scene(scene.avatar, scene.garment, motion, &mirrored) {
-                Ok(map) => {
-                    reflected += 1;
-                    map.reflect_frames(&sim)
-                }
-                Err(why) => {
-                    not_reflected = Some(why);
-                    simulate(&mirrored, format!("{label}, mirrored copy"))?
-                }
-            };
-            frames.push((motion.name.clone(), sim));
-            frames.push((mirrored.name, copy));
-        } else {
-            frames.push((motion.name.clone(), sim));
+            let copy_frames =
+                match MirrorMap::for_scene(scene.avatar, scene.garment, motion, &mirrored) {
+                    Ok(map) => {
+                        reflected += 1;
+                        map.reflect_frames(&sim)
+                    }
+                    Err(why) => {
+                        not_reflected = Some(why);
+                        simulate(&mirrored, format!("{label}, mirrored copy"))?
+                    }
+                };
+            copy = Some((mirrored.name, copy_frames));
         }
+        frames.push((motion.name.clone(), sim));
+        frames.extend(copy);
     }
     let reference = FitReference::from_frames(
         line_up(&dataset_names(dataset), frames),
