@@ -4,10 +4,12 @@
 use burn::tensor::{Device, Tensor, TensorData};
 use neural_cloth::geometry::{Mat4, Quat, SkinWeights, TriMesh, Vec3, rotation_to_6d};
 use neural_cloth::model::descriptors::{DYNAMIC_DIM, STATIC_DIM, rotation_part};
+use neural_cloth::model::heading::without_heading;
 use neural_cloth::model::inference::InferenceScene;
 use neural_cloth::model::{
     ClothNet, ClothNetConfig, DescriptorConfig, DescriptorExtractor, Descriptors, EncoderKind,
-    GarmentLbs, InferenceEngine, InferenceOptions, InferenceWeights, Precision, SkinMatrixBuilder,
+    GarmentLbs, InferenceEngine, InferenceOptions, InferenceWeights, Precision, RotationFrame,
+    SkinMatrixBuilder,
 };
 use neural_cloth::scene::{
     Avatar, Garment, GarmentOptions, JointTransform, Motion, Pose, Skeleton,
@@ -298,25 +300,36 @@ fn input_joints_drop_hands_and_feet() {
 fn static_descriptors_are_6d_local_rotation_and_unit_unposed_gravity() {
     let sk = skeleton();
     let m = motion(&sk, 6, 0, 3);
-    let mut ex = DescriptorExtractor::new(&sk, &DescriptorConfig::default(), FPS).unwrap();
-    let d = ex.motion(&m).unwrap();
-    assert_eq!((d.frames, d.joints), (6, 16));
-    for t in 0..d.frames {
-        let world = sk.world_from_joint(&m.frames[t]);
-        for (k, &j) in ex.input_joints().iter().enumerate() {
-            let s = &d.static_frame(t).unwrap()[k * STATIC_DIM..(k + 1) * STATIC_DIM];
-            let six = rotation_to_6d(&m.frames[t].rotations[j].to_rotation_matrix().into_inner());
-            assert!(s[..6].iter().zip(&six).all(|(a, b)| (a - b).abs() < 1e-6));
-            let g = Vec3::new(s[6], s[7], s[8]);
-            assert!(
-                (g.norm() - 1.0).abs() < 1e-5,
-                "gravity part is a unit vector"
-            );
-            let back = rotation_part(&world[j]) * g;
-            assert!(
-                (back - Vec3::new(0.0, -1.0, 0.0)).norm() < 1e-5,
-                "re-posing gives world gravity"
-            );
+    for frame in [RotationFrame::Paper, RotationFrame::HeadingFree] {
+        let config = DescriptorConfig {
+            rotation_frame: frame,
+            ..Default::default()
+        };
+        let mut ex = DescriptorExtractor::new(&sk, &config, FPS).unwrap();
+        let d = ex.motion(&m).unwrap();
+        assert_eq!((d.frames, d.joints), (6, 16));
+        for t in 0..d.frames {
+            let world = sk.world_from_joint(&m.frames[t]);
+            for (k, &j) in ex.input_joints().iter().enumerate() {
+                let s = &d.static_frame(t).unwrap()[k * STATIC_DIM..(k + 1) * STATIC_DIM];
+                let local = m.frames[t].rotations[j].to_rotation_matrix().into_inner();
+                let six = if frame == RotationFrame::HeadingFree && sk.parents[j].is_none() {
+                    rotation_to_6d(&without_heading(&rotation_part(&world[j]), &Vec3::y()))
+                } else {
+                    rotation_to_6d(&local)
+                };
+                assert!(s[..6].iter().zip(&six).all(|(a, b)| (a - b).abs() < 1e-6));
+                let g = Vec3::new(s[6], s[7], s[8]);
+                assert!(
+                    (g.norm() - 1.0).abs() < 1e-5,
+                    "gravity part is a unit vector"
+                );
+                let back = rotation_part(&world[j]) * g;
+                assert!(
+                    (back - Vec3::new(0.0, -1.0, 0.0)).norm() < 1e-5,
+                    "re-posing gives world gravity"
+                );
+            }
         }
     }
 }
@@ -334,7 +347,11 @@ fn gravity_descriptor_ignores_turning_about_the_vertical() {
             p
         })
         .collect();
-    let mut ex = DescriptorExtractor::new(&sk, &DescriptorConfig::default(), FPS).unwrap();
+    let paper = DescriptorConfig {
+        rotation_frame: RotationFrame::Paper,
+        ..Default::default()
+    };
+    let mut ex = DescriptorExtractor::new(&sk, &paper, FPS).unwrap();
     let (a, b) = (ex.poses(&m.frames).unwrap(), ex.poses(&turned).unwrap());
     for t in 0..a.frames {
         for k in 0..a.joints {
@@ -344,8 +361,20 @@ fn gravity_descriptor_ignores_turning_about_the_vertical() {
     }
     assert!(
         max_diff(&a.static_desc, &b.static_desc) > 0.1,
-        "the root's 6D rotation does change"
+        "the paper's root 6D rotation does change"
     );
+    // The default, heading-free descriptors do not change at all.
+    let mut ex = DescriptorExtractor::new(&sk, &DescriptorConfig::default(), FPS).unwrap();
+    let (a, b) = (ex.poses(&m.frames).unwrap(), ex.poses(&turned).unwrap());
+    assert!(max_diff(&a.static_desc, &b.static_desc) < 1e-5);
+    // Their rotation rates neither (the accelerations do: the root's path is not turned).
+    for (ra, rb) in a
+        .dynamic_desc
+        .chunks(DYNAMIC_DIM)
+        .zip(b.dynamic_desc.chunks(DYNAMIC_DIM))
+    {
+        assert!(max_diff(&ra[..STATIC_DIM], &rb[..STATIC_DIM]) < 1e-3);
+    }
 }
 
 #[test]

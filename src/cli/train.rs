@@ -9,7 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use super::scene_args::{SceneArgs, scene_config_from_args, scene_from_args};
 use super::train_flags::apply_flags;
-use neural_cloth::model::DescriptorConfig;
+use neural_cloth::model::{DescriptorConfig, RotationFrame};
 use neural_cloth::scene::config::SceneConfig;
 use neural_cloth::train::retention::{MAX_KEEP_NEWEST, Retention};
 
@@ -208,6 +208,11 @@ pub struct TrainArgs {
     /// without it (docs/TRAINING.md round 23)
     #[arg(long, requires = "warm_start_steps", conflicts_with = "no_mirror")]
     pub warm_start_mirror_frames: bool,
+    /// How joint rotations enter the network's input: heading-free (default; the turning
+    /// rate with its sign, every descriptor invariant to the heading) or the paper's
+    /// (docs/TRAINING.md round 24). A resumed run keeps the frame it was trained with
+    #[arg(long, value_name = "FRAME", conflicts_with = "resume")]
+    pub rotation_frame: Option<RotationFrameArg>,
     /// L-BFGS iterations per frame of the warm start's simulation (10-1000; default 200)
     #[arg(long, value_name = "N", requires = "warm_start_steps")]
     pub warm_start_iterations: Option<usize>,
@@ -323,6 +328,24 @@ impl From<InertiaArg> for InertiaMode {
     }
 }
 
+/// How joint rotations enter the descriptors, on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum RotationFrameArg {
+    /// The root without its heading, rotation rates in each joint's own frame.
+    HeadingFree,
+    /// The paper's: the root's global rotation, 6D derivatives in the parent's frame.
+    Paper,
+}
+
+impl From<RotationFrameArg> for RotationFrame {
+    fn from(arg: RotationFrameArg) -> Self {
+        match arg {
+            RotationFrameArg::HeadingFree => Self::HeadingFree,
+            RotationFrameArg::Paper => Self::Paper,
+        }
+    }
+}
+
 /// The backend choice on the command line.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum Backend {
@@ -415,7 +438,10 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         scene_config,
         train: train.clone(),
         model,
-        descriptors: DescriptorConfig::default(),
+        descriptors: DescriptorConfig {
+            rotation_frame: args.rotation_frame.map(Into::into).unwrap_or_default(),
+            ..Default::default()
+        },
         location,
     };
     let handle = Trainer::spawn(setup, None)?;

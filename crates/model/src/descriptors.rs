@@ -6,6 +6,16 @@
 //!   and the joint acceleration `(p_t - 2 p_{t-1} + p_{t-2}) / dt²` unposed by `R_globalᵀ`
 //!   (not normalised).
 //!
+//! [`RotationFrame`] picks how rotations enter. The paper's ([`RotationFrame::Paper`]) gives
+//! the root its global rotation, heading included, and differentiates the 6D values in the
+//! parent's frame: a turn about the vertical then reaches the dynamic encoder as
+//! `ω (-sin φ, 0, -cos φ)` with `φ` the heading it never sees, so the sign of the turn is
+//! not in any one frame's input. [`RotationFrame::HeadingFree`] (the default since round
+//! 24, docs/TRAINING.md) removes the root's heading about gravity (swing-twist) from its
+//! static 6D and differentiates every rotation in the joint's own frame,
+//! `6D(R_{t-1}ᵀ R_t - I) / dt` (about `[0, ω_z, -ω_y, -ω_z, 0, ω_x]`): every
+//! descriptor is then invariant to the heading and the turning rate appears with its sign.
+//!
 //! Values that need history a sequence does not have (the first frame's derivative, the first
 //! two frames' acceleration) are zero, as if the sequence were padded with still frames; a
 //! still body therefore always gives exactly zero dynamic descriptors. Hands, feet, toes and
@@ -21,6 +31,8 @@ use neural_cloth_core::geometry::{Mat3, Mat4, Vec3, rotation_to_6d, safe_normali
 use neural_cloth_core::scene::{Motion, Pose, Skeleton};
 
 use super::ModelError;
+pub use super::heading::RotationFrame;
+use super::heading::without_heading;
 
 /// Static descriptor values per joint.
 pub const STATIC_DIM: usize = 9;
@@ -40,6 +52,10 @@ pub struct DescriptorConfig {
     /// Gravity direction in world space, normalised on use (any non-zero length); default
     /// `[0, -1, 0]` (Y up).
     pub gravity_dir: [f32; 3],
+    /// How rotations enter (default [`RotationFrame::HeadingFree`]; a saved configuration
+    /// without the field is [`RotationFrame::Paper`], as it was trained).
+    #[serde(default = "RotationFrame::saved_before_round_24")]
+    pub rotation_frame: RotationFrame,
 }
 
 /// Root mean square of each dynamic channel over every frame and joint of `sets`, floored at
@@ -70,6 +86,7 @@ impl Default for DescriptorConfig {
         Self {
             exclude_patterns: patterns.iter().map(|s| s.to_string()).collect(),
             gravity_dir: [0.0, -1.0, 0.0],
+            rotation_frame: RotationFrame::default(),
         }
     }
 }
@@ -119,8 +136,12 @@ pub struct DescriptorStream {
     skeleton: Skeleton,
     input_joints: Vec<usize>,
     gravity_unit: Vec3,
+    rotation_frame: RotationFrame,
     dt_secs: f32,
     world: Vec<Mat4>,
+    /// Local rotation of each input joint, this frame and the last.
+    rot_cur: Vec<Mat3>,
+    rot_prev: Vec<Mat3>,
     static_cur: Vec<f32>,
     static_prev: Vec<f32>,
     dynamic: Vec<f32>,
@@ -159,8 +180,11 @@ impl DescriptorStream {
         Ok(Self {
             skeleton: skeleton.clone(),
             gravity_unit,
+            rotation_frame: config.rotation_frame,
             dt_secs,
             world: vec![Mat4::identity(); skeleton.len()],
+            rot_cur: vec![Mat3::identity(); j],
+            rot_prev: vec![Mat3::identity(); j],
             static_cur: vec![0.0; j * STATIC_DIM],
             static_prev: vec![0.0; j * STATIC_DIM],
             dynamic: vec![0.0; j * DYNAMIC_DIM],
@@ -231,6 +255,7 @@ impl DescriptorStream {
         self.check_pose(pose)?;
         world_from_joint_into(&self.skeleton, pose, &mut self.world);
         std::mem::swap(&mut self.static_cur, &mut self.static_prev);
+        std::mem::swap(&mut self.rot_cur, &mut self.rot_prev);
         self.pos.rotate_right(1); // pos[0] becomes free, pos[1] = t-1, pos[2] = t-2
         let inv_dt = 1.0 / self.dt_secs;
         let inv_dt2 = inv_dt * inv_dt;
@@ -240,7 +265,13 @@ impl DescriptorStream {
             let world = self.world[j];
             let global_from_joint = rotation_part(&world);
             let local = pose.rotations[j].to_rotation_matrix().into_inner();
-            let six = rotation_to_6d(&local);
+            self.rot_cur[k] = local;
+            let heading_free = self.rotation_frame == RotationFrame::HeadingFree;
+            let six = if heading_free && self.skeleton.parents[j].is_none() {
+                rotation_to_6d(&without_heading(&global_from_joint, &-self.gravity_unit))
+            } else {
+                rotation_to_6d(&local)
+            };
             let gravity = global_from_joint.transpose() * self.gravity_unit;
             let s = &mut self.static_cur[k * STATIC_DIM..(k + 1) * STATIC_DIM];
             s[..6].copy_from_slice(&six);
@@ -253,6 +284,14 @@ impl DescriptorStream {
                 let cur = &self.static_cur[k * STATIC_DIM..(k + 1) * STATIC_DIM];
                 for ((dv, c), pv) in d[..STATIC_DIM].iter_mut().zip(cur).zip(prev) {
                     *dv = (c - pv) * inv_dt;
+                }
+                if heading_free {
+                    // R_{t-1}ᵀ R_t - I as R_{t-1}ᵀ (R_t - R_{t-1}): exactly zero when still.
+                    let prev_rot = self.rot_prev[k];
+                    let step = rotation_to_6d(&(prev_rot.transpose() * (local - prev_rot)));
+                    for (dv, v) in d[..6].iter_mut().zip(step) {
+                        *dv = v * inv_dt;
+                    }
                 }
             } else {
                 d[..STATIC_DIM].fill(0.0);

@@ -17,6 +17,7 @@ pub mod compiled;
 pub mod descriptors;
 pub mod gru;
 pub mod gru_unroll;
+pub mod heading;
 pub mod inference;
 pub mod kernels;
 pub mod network;
@@ -26,8 +27,8 @@ pub mod weights;
 
 pub use artifact::ModelArtifact;
 pub use descriptors::{
-    DYNAMIC_DIM, DescriptorConfig, DescriptorExtractor, DescriptorStream, Descriptors, STATIC_DIM,
-    dynamic_channel_rms,
+    DYNAMIC_DIM, DescriptorConfig, DescriptorExtractor, DescriptorStream, Descriptors,
+    RotationFrame, STATIC_DIM, dynamic_channel_rms,
 };
 pub use inference::{InferenceEngine, InferenceOptions};
 pub use kernels::Precision;
