@@ -17,7 +17,8 @@ use neural_cloth::train::load_trained;
 pub struct CompareArgs {
     /// Run folder (or checkpoint folder) of a trained model.
     pub checkpoint: PathBuf,
-    /// Motion of the run's scene; default: every motion of the validation split.
+    /// Motion of the run's scene (or "NAME (mirrored)": its left/right mirror image);
+    /// default: every motion of the validation split.
     #[arg(long)]
     pub motion: Option<String>,
     /// Dynamic weight w of the network in [0, 2] (1 = as trained).

@@ -196,6 +196,25 @@ fn the_warm_start_fits_our_simulation_for_its_steps_and_compare_reads_it() {
         assert_eq!(simulated, 0, "the dynamic reference came from the cache");
         report.motions[0].measures.all.mean_mm
     };
+    // A motion's mirror image is checked by naming it so; it is simulated on its own.
+    let trained = load_trained(&dir.path().join("c")).unwrap();
+    let mut simulated = 0;
+    let mirrored = compare(&trained, Some("idle2 (mirrored)"), &options, &mut |p| {
+        simulated += usize::from(p.phase == ComparePhase::Simulating);
+        true
+    })
+    .unwrap();
+    assert_eq!(mirrored.motions[0].name, "idle2 (mirrored)");
+    assert!(simulated > 0, "the mirror image has a reference of its own");
+    assert!(mirrored.motions[0].measures.all.mean_mm.is_finite());
+    let unknown = compare(&trained, Some("jog (mirrored)"), &options, &mut |_| true)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        unknown.contains("'jog (mirrored)'") && unknown.contains("NAME (mirrored)"),
+        "{unknown}"
+    );
     let (warm_mm, plain_mm) = (distance("a"), distance("c"));
     // (60 steps on the tiny scene: 20.6 against 22.5 mm.)
     assert!(

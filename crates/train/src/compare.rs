@@ -72,7 +72,7 @@ use serde::{Deserialize, Serialize};
 
 use neural_cloth_core::geometry::Vec3;
 use neural_cloth_core::scene::config::Split;
-use neural_cloth_core::scene::{Motion, Pose};
+use neural_cloth_core::scene::{MIRRORED_NAME_SUFFIX, Motion, Pose};
 use neural_cloth_model::ModelError;
 use neural_cloth_physics::metrics::sequence_metrics;
 use neural_cloth_physics::{ClothMetrics, StaticTerms};
@@ -408,27 +408,34 @@ pub fn sequence_mean_metrics(
     Ok((mean, ObjectiveTerms::mean_of(&per_frame)))
 }
 
-/// The motions to compare: the one named, or every motion of the validation split.
-fn pick_motions<'a>(
-    trained: &'a TrainedModel,
-    name: Option<&str>,
-) -> Result<Vec<&'a Motion>, TrainError> {
+/// The motions to check: the one named (or the mirror image of the one named without
+/// [`MIRRORED_NAME_SUFFIX`], the name [`Motion::mirrored`] gives it), else every validation motion.
+fn pick_motions(trained: &TrainedModel, name: Option<&str>) -> Result<Vec<Motion>, TrainError> {
     let scene = &trained.scene;
-    let picked: Vec<&Motion> = match name {
-        Some(name) => scene
+    let by_name = |wanted: &str| {
+        scene
             .motions
             .iter()
             .map(|(m, _)| m)
-            .filter(|m| m.name == name)
-            .take(1)
-            .collect(),
-        None => scene.motions_in(Split::Validation).collect(),
+            .find(|m| m.name == wanted)
+    };
+    let picked: Vec<Motion> = match name {
+        Some(name) => match by_name(name) {
+            Some(m) => vec![m.clone()],
+            None => name
+                .strip_suffix(MIRRORED_NAME_SUFFIX)
+                .and_then(by_name)
+                .map(|m| m.mirrored(&scene.avatar.skeleton))
+                .into_iter()
+                .collect(),
+        },
+        None => scene.motions_in(Split::Validation).cloned().collect(),
     };
     if picked.is_empty() {
         let names: Vec<&str> = scene.motions.iter().map(|(m, _)| m.name.as_str()).collect();
         return Err(TrainError::Data(match name {
             Some(name) => format!(
-                "unknown motion '{name}' (the scene has: {})",
+                "unknown motion '{name}' (the scene has: {}; any of them also as \"NAME{MIRRORED_NAME_SUFFIX}\", its left/right mirror image)",
                 names.join(", ")
             ),
             None => "the scene has no motion in the validation split; name one".into(),

@@ -10,7 +10,7 @@ pub mod up_axis;
 
 pub use avatar::Avatar;
 pub use garment::{Garment, GarmentOptions};
-pub use motion::Motion;
+pub use motion::{MIRRORED_NAME_SUFFIX, Motion};
 pub use skeleton::{JointTransform, Pose, Skeleton};
 pub use up_axis::UpAxis;
 

@@ -212,12 +212,15 @@ impl Motion {
             })
             .collect();
         Self {
-            name: format!("{} (mirrored)", self.name),
+            name: format!("{}{MIRRORED_NAME_SUFFIX}", self.name),
             fps: self.fps,
             frames,
         }
     }
 }
+
+/// What [`Motion::mirrored`] appends to the name of the motion it mirrors.
+pub const MIRRORED_NAME_SUFFIX: &str = " (mirrored)";
 
 /// For each joint, the index of its left/right counterpart (itself when it has none).
 pub fn mirror_map(names: &[String]) -> Vec<usize> {
