@@ -36,7 +36,7 @@ pub fn without_heading(global: &Mat3, up: &Vec3) -> Mat3 {
     let along_up = up * q.imag().dot(up);
     let twist = Quaternion::new(q.w, along_up.x, along_up.y, along_up.z);
     let norm = twist.norm();
-    if !(norm > 1e-6) {
+    if norm.is_nan() || norm <= 1e-6 {
         return *global;
     }
     let twist = Quat::new_unchecked(twist / norm);
