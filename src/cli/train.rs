@@ -8,8 +8,8 @@ use anyhow::bail;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::scene_args::{SceneArgs, scene_config_from_args, scene_from_args};
-use super::train_flags::apply_flags;
-use neural_cloth::model::{DescriptorConfig, RotationFrame};
+use super::train_flags::{apply_flags, descriptor_config};
+use neural_cloth::model::RotationFrame;
 use neural_cloth::scene::config::SceneConfig;
 use neural_cloth::train::retention::{MAX_KEEP_NEWEST, Retention};
 
@@ -428,6 +428,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     {
         bail!("--keep-checkpoints {n} is outside 1..={MAX_KEEP_NEWEST}");
     }
+    let descriptors = descriptor_config(&args);
     let location = match (args.resume, args.out) {
         (Some(dir), _) => RunLocation::Resume(dir),
         (None, Some(dir)) => RunLocation::At(dir),
@@ -438,10 +439,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         scene_config,
         train: train.clone(),
         model,
-        descriptors: DescriptorConfig {
-            rotation_frame: args.rotation_frame.map(Into::into).unwrap_or_default(),
-            ..Default::default()
-        },
+        descriptors,
         location,
     };
     let handle = Trainer::spawn(setup, None)?;

@@ -1,8 +1,8 @@
 //! The `train` command's flags applied to the settings they override: each given flag
-//! replaces the scene's default (or a resumed run's own value) in [`TrainConfig`] or the
-//! network's [`ClothNetConfig`].
+//! replaces the scene's default (or a resumed run's own value) in [`TrainConfig`], the
+//! network's [`ClothNetConfig`] or the [`DescriptorConfig`] of a new run.
 
-use neural_cloth::model::ClothNetConfig;
+use neural_cloth::model::{ClothNetConfig, DescriptorConfig};
 use neural_cloth::train::{BackendKind, TrainConfig};
 
 use super::train::{Backend, TrainArgs};
@@ -101,11 +101,21 @@ pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig 
     model
 }
 
+/// The descriptor settings of a new run: `--rotation-frame`, else the default (a resumed run
+/// keeps its own; clap refuses the flag with `--resume`).
+pub fn descriptor_config(args: &TrainArgs) -> DescriptorConfig {
+    DescriptorConfig {
+        rotation_frame: args.rotation_frame.map(Into::into).unwrap_or_default(),
+        ..Default::default()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use clap::Parser;
 
     use super::*;
+    use neural_cloth::model::RotationFrame;
 
     /// The `train` arguments alone, parsed as a command line.
     #[derive(Parser)]
@@ -268,8 +278,18 @@ mod tests {
             Line::try_parse_from(["train", "--fit-reference", "r", "--warm-start-steps", "5"])
                 .is_err()
         );
+        // The rotation frame of the descriptors, for new runs only.
+        let paper = Line::try_parse_from(["train", "--rotation-frame", "paper"]).unwrap();
+        assert_eq!(
+            descriptor_config(&paper.args).rotation_frame,
+            RotationFrame::Paper
+        );
+        assert!(
+            Line::try_parse_from(["train", "--rotation-frame", "paper", "--resume", "r"]).is_err()
+        );
         // Flags not given leave the defaults.
         let bare = Line::try_parse_from(["train"]).unwrap();
+        assert_eq!(descriptor_config(&bare.args), DescriptorConfig::default());
         let mut untouched = TrainConfig::default();
         apply_flags(&bare.args, &mut untouched);
         assert_eq!(untouched, TrainConfig::default());
