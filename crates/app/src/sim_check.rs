@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use neural_cloth_core::scene::MIRRORED_NAME_SUFFIX;
 use neural_cloth_train::compare::{CompareOptions, CompareProgress, CompareReport, compare};
 use neural_cloth_train::load_trained;
 
@@ -19,6 +20,9 @@ pub struct SimCheck {
     /// Compare only the motion shown in the viewport (otherwise the validation motions);
     /// default false.
     pub shown_motion_only: bool,
+    /// With `shown_motion_only`, check the left/right mirror image of the shown motion
+    /// instead (does the network behave alike both ways); default false.
+    pub mirrored: bool,
     /// Also simulate with twice the iterations and show how far the two references are
     /// apart (whether the reference is converged); default false.
     pub spread: bool,
@@ -34,6 +38,7 @@ impl Default for SimCheck {
         Self {
             iterations: 200,
             shown_motion_only: false,
+            mirrored: false,
             spread: false,
             sensitivity: false,
             job: JobSlot::default(),
@@ -122,6 +127,17 @@ impl SimCheck {
         self.job.progress().flatten()
     }
 
+    /// The motion to check: the one shown (`shown`), or its mirror image, when only that
+    /// one is asked for; `None` (the validation motions) otherwise.
+    pub fn checked_motion(&self, shown: Option<String>) -> Option<String> {
+        let name = shown.filter(|_| self.shown_motion_only)?;
+        Some(if self.mirrored {
+            format!("{name}{MIRRORED_NAME_SUFFIX}")
+        } else {
+            name
+        })
+    }
+
     /// "Check against simulation" pressed: compares the run at `run_dir` (none: nothing to
     /// check) on the motion shown (`shown`) when only that one is asked for, else on the
     /// validation motions; why it cannot start becomes the result.
@@ -134,8 +150,7 @@ impl SimCheck {
         let Some(dir) = run_dir else {
             return;
         };
-        let motion = shown.filter(|_| self.shown_motion_only);
-        if let Err(e) = self.start(dir, motion, notify) {
+        if let Err(e) = self.start(dir, self.checked_motion(shown), notify) {
             self.job.result = Some(Err(e));
         }
     }
@@ -144,6 +159,23 @@ impl SimCheck {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_shown_motion_or_its_mirror_image_is_checked_when_asked() {
+        let mut check = SimCheck::default();
+        let spin = || Some("spin".to_string());
+        assert_eq!(check.checked_motion(spin()), None, "validation motions");
+        check.mirrored = true;
+        assert_eq!(check.checked_motion(spin()), None);
+        check.shown_motion_only = true;
+        assert_eq!(
+            check.checked_motion(spin()).as_deref(),
+            Some("spin (mirrored)")
+        );
+        check.mirrored = false;
+        assert_eq!(check.checked_motion(spin()).as_deref(), Some("spin"));
+        assert_eq!(check.checked_motion(None), None);
+    }
 
     #[test]
     fn unavailable_without_a_run_or_checkpoint() {

@@ -69,6 +69,14 @@ fn check_settings_ui(
         egui::Checkbox::new(&mut check.shown_motion_only, label),
     )
     .on_hover_text("Otherwise: every motion of the scene's validation split");
+    ui.add_enabled(
+        shown.is_some() && check.shown_motion_only,
+        egui::Checkbox::new(&mut check.mirrored, "its left/right mirror image"),
+    )
+    .on_hover_text(
+        "Check the shown motion mirrored left to right (a turn the other way): does the \
+         network behave alike both ways",
+    );
     ui.checkbox(&mut check.spread, "measure the reference's spread")
         .on_hover_text(
             "Also simulate with twice the iterations and show how far the two simulations \
