@@ -202,6 +202,13 @@ pub struct TrainArgs {
     /// without them, 17.8 with them; docs/TRAINING.md round 22)
     #[arg(long)]
     pub no_mirror: bool,
+    /// Experimental: train this many steps on the motions alone before their mirrored copies
+    /// join (default 0: with them from the start). Learned one way first, the
+    /// direction-dependent part of a motion (a skirt's twist) carries to the other: the skirt
+    /// 88.8 / 101.0 mm from the simulator on the spin / mirrored spin after 1100 + 1100 steps,
+    /// 132.7 / 132.8 with the copies throughout (docs/TRAINING.md round 24)
+    #[arg(long, value_name = "STEPS", conflicts_with = "no_mirror")]
+    pub mirror_from_step: Option<u64>,
     /// Experimental: the warm start also fits the mirrored copies, to the mirror image of
     /// their motion's simulation when the garment and body are symmetric, else to their own
     /// simulation. Measured worse: the spin alone 26.8 mm from the simulator against 17.8

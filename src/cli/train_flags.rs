@@ -98,6 +98,9 @@ pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig 
     if args.warm_start_mirror_frames {
         train.warm_start_mirror_frames = true;
     }
+    if let Some(n) = args.mirror_from_step {
+        train.mirror_from_step = n;
+    }
     model
 }
 
@@ -263,6 +266,11 @@ mod tests {
         );
         assert!(!train.mirror_poses);
         assert!(!train.warm_start_mirror_frames);
+        let later = Line::try_parse_from(["train", "--mirror-from-step", "1100"]).unwrap();
+        let mut train = TrainConfig::default();
+        apply_flags(&later.args, &mut train);
+        assert_eq!((train.mirror_from_step, train.mirror_poses), (1100, true));
+        assert!(Line::try_parse_from(["train", "--mirror-from-step", "5", "--no-mirror"]).is_err());
         let reflected = Line::try_parse_from([
             "train",
             "--warm-start-steps",

@@ -217,6 +217,17 @@ fn validation_names_the_field() {
     ] {
         assert_eq!(refused(bad), "warm_start_mirror_frames");
     }
+    // The copies' late start needs copies.
+    let later = TrainConfig {
+        mirror_from_step: 500,
+        ..Default::default()
+    };
+    assert!(later.validate(30.0).is_ok());
+    let no_copies = TrainConfig {
+        mirror_poses: false,
+        ..later
+    };
+    assert_eq!(refused(no_copies), "mirror_from_step");
     // The momentum boost: in [0, 1], with a schedule length.
     for (boost, steps, field) in [
         (-0.1, 100, "momentum_boost"),

@@ -21,6 +21,8 @@ const MAT: usize = 12;
 pub struct MotionData {
     /// Name (mirrored copies end in "(mirrored)").
     pub name: String,
+    /// True for the left/right mirrored copy of a motion.
+    pub mirrored: bool,
     /// Poses at the training rate.
     pub poses: Vec<Pose>,
     /// Descriptors of every frame.
@@ -130,11 +132,11 @@ impl Dataset {
             let resampled = motion
                 .resample(fps)
                 .map_err(neural_cloth_model::ModelError::from)?;
-            let mut variants = vec![resampled.clone()];
+            let mut variants = vec![(resampled.clone(), false)];
             if mirror {
-                variants.push(resampled.mirrored(&avatar.skeleton));
+                variants.push((resampled.mirrored(&avatar.skeleton), true));
             }
-            for m in variants {
+            for (m, mirrored) in variants {
                 let descriptors = extractor.motion(&m)?;
                 let mut matrices = Vec::with_capacity(m.frames.len() * builder.joint_count() * MAT);
                 for pose in &m.frames {
@@ -143,6 +145,7 @@ impl Dataset {
                 let bodies = (0..m.frames.len()).map(|_| OnceLock::new()).collect();
                 out.push(MotionData {
                     name: m.name.clone(),
+                    mirrored,
                     poses: m.frames,
                     descriptors,
                     matrices,
@@ -167,13 +170,26 @@ impl Dataset {
         self.motions.iter().map(|m| m.frames()).sum()
     }
 
-    /// Draws `size` windows uniformly over all frames of all motions.
-    pub fn sample_windows(&self, size: usize, rng: &mut StdRng) -> Vec<(usize, usize)> {
-        let total = self.total_frames().max(1);
+    /// Draws `size` windows uniformly over all frames of all motions, or of the motions that
+    /// are not mirrored copies when `with_mirrored` is false.
+    pub fn sample_windows(
+        &self,
+        size: usize,
+        with_mirrored: bool,
+        rng: &mut StdRng,
+    ) -> Vec<(usize, usize)> {
+        let drawn = |m: &MotionData| with_mirrored || !m.mirrored;
+        let total = self
+            .motions
+            .iter()
+            .filter(|m| drawn(m))
+            .map(|m| m.frames())
+            .sum::<usize>()
+            .max(1);
         (0..size)
             .map(|_| {
                 let mut k = rng.random_range(0..total);
-                for (i, m) in self.motions.iter().enumerate() {
+                for (i, m) in self.motions.iter().enumerate().filter(|(_, m)| drawn(m)) {
                     if k < m.frames() {
                         return (i, k);
                     }
@@ -413,6 +429,45 @@ mod tests {
         assert!(!Arc::ptr_eq(&rebuilt, &bodies[0]));
         assert_eq!(rebuilt.positions(), bodies[0].positions(), "the same pose");
         assert!(data.body(&scene.avatar, 9, 0).is_err());
+    }
+
+    #[test]
+    fn mirrored_copies_are_drawn_only_when_asked() {
+        use neural_cloth_core::scene::config::SceneConfig;
+        use neural_cloth_core::scene::procedural::build_builtin;
+        use rand::SeedableRng;
+        let mut config = SceneConfig::default_scene();
+        config.motions.truncate(2);
+        let scene = build_builtin(&config).unwrap();
+        let data = |mirror| {
+            Dataset::new(
+                &scene.avatar,
+                &scene.motions,
+                Split::Train,
+                30.0,
+                &DescriptorConfig::default(),
+                mirror,
+            )
+            .unwrap()
+        };
+        let (both, plain) = (data(true), data(false));
+        assert_eq!(both.motions.iter().filter(|m| m.mirrored).count(), 2);
+        let draw = |d: &Dataset, with_mirrored| {
+            let windows = d.sample_windows(400, with_mirrored, &mut StdRng::seed_from_u64(3));
+            windows
+                .iter()
+                .map(|&(i, f)| (d.motions[i].name.clone(), f))
+                .collect::<Vec<_>>()
+        };
+        let originals = draw(&both, false);
+        assert!(originals.iter().all(|(n, _)| !n.ends_with("(mirrored)")));
+        assert_eq!(
+            originals,
+            draw(&plain, true),
+            "the same windows as without the copies"
+        );
+        let mixed = draw(&both, true);
+        assert!(mixed.iter().any(|(n, _)| n.ends_with("(mirrored)")));
     }
 
     #[test]

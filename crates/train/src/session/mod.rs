@@ -383,7 +383,8 @@ fn stack_frames(x: &Tensor<4>, from: usize, to: usize, rows: usize) -> Tensor<3>
 impl Session for NeuralSession {
     fn step(&mut self) -> Result<MetricRecord, TrainError> {
         let b = self.config.batch_size;
-        let windows = self.train.sample_windows(b, &mut self.rng);
+        let with_mirrored = self.filter.steps_taken() >= self.config.mirror_from_step;
+        let windows = self.train.sample_windows(b, with_mirrored, &mut self.rng);
         let augment = if self.terms.effects().dynamics && b >= 2 {
             ((self.config.augmentation_fraction * b as f32).round() as usize).min(b - 1)
         } else {

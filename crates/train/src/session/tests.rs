@@ -96,7 +96,7 @@ fn the_momentum_boost_changes_the_inertia_loss_until_its_schedule_ends() {
         ..Default::default()
     };
     let mut s = session_with(boosted, dir.path());
-    let windows = s.train.sample_windows(4, &mut s.rng);
+    let windows = s.train.sample_windows(4, true, &mut s.rng);
     let batch = s
         .train
         .batch_with_still(&windows, 0, s.batch_frames(), 3, &s.garment.skin);
@@ -127,8 +127,8 @@ fn two_runs_prepared_with_one_seed_in_one_process_start_from_the_same_weights() 
     let config = TrainConfig::default();
     let mut a = session_with(config.clone(), &dir.path().join("a"));
     let mut b = session_with(config, &dir.path().join("b"));
-    let windows = a.train.sample_windows(4, &mut a.rng);
-    assert_eq!(windows, b.train.sample_windows(4, &mut b.rng));
+    let windows = a.train.sample_windows(4, true, &mut a.rng);
+    assert_eq!(windows, b.train.sample_windows(4, true, &mut b.rng));
     let batch = a
         .train
         .batch_with_still(&windows, 0, a.batch_frames(), 3, &a.garment.skin);
