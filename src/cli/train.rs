@@ -205,8 +205,9 @@ pub struct TrainArgs {
     /// Experimental: train this many steps on the motions alone before their mirrored copies
     /// join (default 0: with them from the start). Learned one way first, the
     /// direction-dependent part of a motion (a skirt's twist) carries to the other: the skirt
-    /// 88.8 / 101.0 mm from the simulator on the spin / mirrored spin after 1100 + 1100 steps,
-    /// 132.7 / 132.8 with the copies throughout (docs/TRAINING.md round 24)
+    /// 88.8 / 101.0 mm (resumed) and 116.8 / 128.4 (from scratch) from the simulator on the
+    /// spin / mirrored spin after 1100 + 1100 steps, 132.7 / 132.8 with the copies throughout
+    /// (docs/TRAINING.md round 24)
     #[arg(long, value_name = "STEPS", conflicts_with = "no_mirror")]
     pub mirror_from_step: Option<u64>,
     /// Experimental: the warm start also fits the mirrored copies, to the mirror image of

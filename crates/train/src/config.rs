@@ -92,8 +92,8 @@ pub struct TrainConfig {
     /// turning directions from the start the network learns the direction-dependent part
     /// of a motion (the skirt's twist about the body) hardly at all; learned one way first, it
     /// carries to the other (round 24, docs/TRAINING.md: skirt 1100 + 1100 steps, spin 88.8 /
-    /// mirrored 101.0 mm from the simulator against 132.7 / 132.8 with the copies
-    /// throughout). Experimental, one seed.
+    /// mirrored 101.0 mm from the simulator resumed, 116.8 / 128.4 from scratch, against
+    /// 132.7 / 132.8 with the copies throughout). Experimental, one seed.
     pub mirror_from_step: u64,
     /// Fraction of each batch whose dynamic codes are shuffled (motion augmentation, static
     /// losses only, no encoder gradient); 0..=0.9, default 0 (the paper's 0.2 teaches the
