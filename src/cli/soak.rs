@@ -400,6 +400,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
                 preview.set_weights(weights)?;
             }
             TrainEvent::Warning(w) => eprintln!("warning: {w}"),
+            TrainEvent::Note(n) => eprintln!("note: {n}"),
             TrainEvent::RolledBack {
                 diverged_at,
                 restored_step,

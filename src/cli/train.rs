@@ -202,14 +202,20 @@ pub struct TrainArgs {
     /// without them, 17.8 with them; docs/TRAINING.md round 22)
     #[arg(long)]
     pub no_mirror: bool,
-    /// Experimental: train this many steps on the motions alone before their mirrored copies
-    /// join (default 0: with them from the start). Learned one way first, the
+    /// Train at least this many steps on the motions alone before their mirrored copies join
+    /// (default 0; `--mirror-from` decides too). Learned one way first, the
     /// direction-dependent part of a motion (a skirt's twist) carries to the other: the skirt
     /// 88.8 / 101.0 mm (resumed) and 116.8 / 128.4 (from scratch) from the simulator on the
     /// spin / mirrored spin after 1100 + 1100 steps, 132.7 / 132.8 with the copies throughout
     /// (docs/TRAINING.md round 24)
     #[arg(long, value_name = "STEPS", conflicts_with = "no_mirror")]
     pub mirror_from_step: Option<u64>,
+    /// The mirrored copies join once this fraction of the run's budget (`--steps` or
+    /// `--minutes`) is spent; 0..1, default 0.5 (0: with them from the start). The skirt
+    /// after 1702 steps: 93.8 / 92.0 mm from the simulator on the spin / mirrored spin with
+    /// 0.5, 136.7 / 150.5 with 0; the t-shirt within a millimetre (docs/TRAINING.md round 25)
+    #[arg(long, value_name = "FRACTION", conflicts_with = "no_mirror")]
+    pub mirror_from: Option<f64>,
     /// Experimental: the warm start also fits the mirrored copies, to the mirror image of
     /// their motion's simulation when the garment and body are symmetric, else to their own
     /// simulation. Measured worse: the spin alone 26.8 mm from the simulator against 17.8
@@ -517,6 +523,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
                 }
             }
             TrainEvent::Warning(w) => say(format!("warning: {w}")),
+            TrainEvent::Note(n) => say(format!("note: {n}")),
             TrainEvent::Stalled {
                 step,
                 reason,

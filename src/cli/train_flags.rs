@@ -101,6 +101,9 @@ pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig 
     if let Some(n) = args.mirror_from_step {
         train.mirror_from_step = n;
     }
+    if let Some(f) = args.mirror_from {
+        train.mirror_from_fraction = f;
+    }
     model
 }
 
@@ -271,6 +274,12 @@ mod tests {
         apply_flags(&later.args, &mut train);
         assert_eq!((train.mirror_from_step, train.mirror_poses), (1100, true));
         assert!(Line::try_parse_from(["train", "--mirror-from-step", "5", "--no-mirror"]).is_err());
+        let half =
+            Line::try_parse_from(["train", "--minutes", "6", "--mirror-from", "0.5"]).unwrap();
+        let mut train = TrainConfig::default();
+        apply_flags(&half.args, &mut train);
+        assert_eq!(train.mirror_from_fraction, 0.5);
+        assert!(Line::try_parse_from(["train", "--mirror-from", "0.5", "--no-mirror"]).is_err());
         let reflected = Line::try_parse_from([
             "train",
             "--warm-start-steps",

@@ -103,6 +103,24 @@ pub struct Progress {
     pub elapsed_secs: f64,
     /// Step limit of the run, if any (for the progress bar).
     pub max_steps: Option<u64>,
+    /// Limit of the run in seconds of training, if any (for the progress bar).
+    pub max_secs: Option<f64>,
+}
+
+impl Progress {
+    /// Share of the run's budget spent, 0..=1: the larger of its steps and its time, as the
+    /// trainer counts them; 0 for an open-ended run.
+    pub fn fraction(&self) -> f32 {
+        let by_steps = self
+            .max_steps
+            .filter(|&m| m > 0)
+            .map_or(0.0, |m| self.step as f64 / m as f64);
+        let by_time = self
+            .max_secs
+            .filter(|&m| m > 0.0)
+            .map_or(0.0, |m| self.elapsed_secs / m);
+        by_steps.max(by_time).clamp(0.0, 1.0) as f32
+    }
 }
 
 /// The training panel's model: state, progress, metric history, preview weights and messages.
@@ -193,6 +211,7 @@ impl TrainingControl {
             return Err(AppError::Missing("no trainer is available in this build"));
         };
         let max_steps = request.config.max_steps;
+        let max_secs = request.config.max_minutes.map(|m| m * 60.0);
         let run_dir = request.run_dir.clone();
         let handle = launcher.launch(request, notify)?;
         self.handle = Some(handle);
@@ -200,6 +219,7 @@ impl TrainingControl {
         self.markers.clear();
         self.progress = Progress {
             max_steps,
+            max_secs,
             ..Default::default()
         };
         self.run_dir = Some(run_dir);
@@ -397,6 +417,7 @@ impl TrainingControl {
                 self.note(format!("{setting} rejected: {error}"));
             }
             TrainEvent::Warning(w) => self.note(format!("⚠ {w}")),
+            TrainEvent::Note(n) => self.note(n),
             TrainEvent::Stalled {
                 step,
                 reason,
@@ -424,5 +445,35 @@ impl TrainingControl {
                 self.handle = None;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Progress;
+
+    #[test]
+    fn the_progress_bar_counts_the_larger_of_steps_and_minutes_spent() {
+        let open = Progress {
+            step: 50,
+            elapsed_secs: 30.0,
+            ..Default::default()
+        };
+        assert_eq!(open.fraction(), 0.0);
+        let by_time = Progress {
+            max_secs: Some(120.0),
+            ..open
+        };
+        assert_eq!(by_time.fraction(), 0.25);
+        let both = Progress {
+            max_steps: Some(100),
+            ..by_time
+        };
+        assert_eq!(both.fraction(), 0.5);
+        let over = Progress {
+            elapsed_secs: 500.0,
+            ..both
+        };
+        assert_eq!(over.fraction(), 1.0);
     }
 }

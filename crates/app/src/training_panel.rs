@@ -65,6 +65,7 @@ impl NeuralClothApp {
                          start, untick it: the copies have no simulated frames and pull the \
                          swing back (docs/TRAINING.md round 22)",
                     );
+                    mirror_start_ui(ui, cfg, !state.is_active());
                 });
                 ui.horizontal_wrapped(|ui| {
                     let can_start = !state.is_active();
@@ -105,13 +106,11 @@ impl NeuralClothApp {
                     {
                         self.request_reset();
                     }
+                    self.budget_ui(ui, !state.is_active());
                 });
                 let p = self.state.training.progress;
                 ui.label(format!("State: {}", state.label()));
-                let fraction = match p.max_steps {
-                    Some(m) if m > 0 => (p.step as f32 / m as f32).clamp(0.0, 1.0),
-                    _ => 0.0,
-                };
+                let fraction = p.fraction();
                 let text = format!(
                     "step {} · {:.1} steps/s · {:.0} s",
                     p.step, p.steps_per_sec, p.elapsed_secs
@@ -154,5 +153,56 @@ impl NeuralClothApp {
                     );
                 }
             });
+    }
+
+    /// The run's budget: minutes of training, 0 = until Stop; editable while no run is
+    /// active.
+    fn budget_ui(&mut self, ui: &mut egui::Ui, enabled: bool) {
+        let cfg = &mut self.state.train_config;
+        let mut minutes = cfg.max_minutes.unwrap_or(0.0);
+        let changed = ui
+            .add_enabled(
+                enabled,
+                egui::DragValue::new(&mut minutes)
+                    .range(0.0..=24.0 * 60.0)
+                    .speed(0.5)
+                    .prefix("stop after: ")
+                    .suffix(" min"),
+            )
+            .on_hover_text(
+                "Minutes of training before the run stops on its own (0 = until Stop). A \
+                 bounded run starts the mirrored copies part-way and can let its learning \
+                 rate fall at the end",
+            )
+            .changed();
+        if changed {
+            cfg.max_minutes = (minutes > 0.0).then_some(minutes);
+        }
+    }
+}
+
+/// When the mirrored copies join a bounded run, as a share of it; editable while no run is
+/// active and the run has copies and a limit.
+fn mirror_start_ui(ui: &mut egui::Ui, cfg: &mut neural_cloth_train::TrainConfig, enabled: bool) {
+    let mut percent = cfg.mirror_from_fraction * 100.0;
+    let bounded = cfg.max_minutes.is_some() || cfg.max_steps.is_some();
+    if ui
+        .add_enabled(
+            enabled && bounded && cfg.mirror_poses,
+            egui::DragValue::new(&mut percent)
+                .range(0.0..=90.0)
+                .speed(1.0)
+                .prefix("from ")
+                .suffix(" %"),
+        )
+        .on_hover_text(
+            "Share of a bounded run trained on the motions alone before their mirrored \
+             copies join: learned one way first, the part of a motion that depends on its \
+             direction (a skirt's twist) carries to the other (docs/TRAINING.md rounds 24 and \
+             25). A run without a limit (stop after 0 min) has the copies from the start",
+        )
+        .changed()
+    {
+        cfg.mirror_from_fraction = percent / 100.0;
     }
 }

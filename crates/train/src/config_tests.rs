@@ -228,6 +228,34 @@ fn validation_names_the_field() {
         ..later
     };
     assert_eq!(refused(no_copies), "mirror_from_step");
+    // The copies' late start as a fraction of the run: below 1; without copies it has nothing
+    // to start (the default fraction stays valid with `--no-mirror`).
+    let half = TrainConfig {
+        mirror_from_fraction: 0.5,
+        ..Default::default()
+    };
+    assert!(half.validate(30.0).is_ok());
+    let no_copies = TrainConfig {
+        mirror_poses: false,
+        ..half.clone()
+    };
+    assert!(no_copies.validate(30.0).is_ok());
+    for bad in [
+        TrainConfig {
+            mirror_from_fraction: 1.0,
+            ..half.clone()
+        },
+        TrainConfig {
+            mirror_from_fraction: -0.1,
+            ..half.clone()
+        },
+        TrainConfig {
+            mirror_from_fraction: f64::NAN,
+            ..half
+        },
+    ] {
+        assert_eq!(refused(bad), "mirror_from_fraction");
+    }
     // The momentum boost: in [0, 1], with a schedule length.
     for (boost, steps, field) in [
         (-0.1, 100, "momentum_boost"),
@@ -279,4 +307,22 @@ fn round_trips_through_toml() {
     };
     let text = toml::to_string(&c).unwrap();
     assert_eq!(toml::from_str::<TrainConfig>(&text).unwrap(), c);
+}
+
+/// Runs saved before the fraction existed had their copies from the start: they keep them.
+#[test]
+fn a_config_saved_without_the_copies_fraction_reads_as_copies_from_the_start() {
+    let new = TrainConfig::default();
+    assert_eq!(new.mirror_from_fraction, 0.5);
+    let mut table = toml::Table::try_from(&new).unwrap();
+    assert!(table.remove("mirror_from_fraction").is_some());
+    let saved: TrainConfig = toml::from_str(&toml::to_string(&table).unwrap()).unwrap();
+    assert_eq!(saved.mirror_from_fraction, 0.0);
+    assert_eq!(
+        TrainConfig {
+            mirror_from_fraction: 0.5,
+            ..saved
+        },
+        new
+    );
 }

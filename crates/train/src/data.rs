@@ -165,6 +165,11 @@ impl Dataset {
         self.motions.iter().all(|m| m.frames() == 0)
     }
 
+    /// True when the split holds mirrored copies of its motions.
+    pub fn has_mirrored(&self) -> bool {
+        self.motions.iter().any(|m| m.mirrored)
+    }
+
     /// Total frames over all motions.
     pub fn total_frames(&self) -> usize {
         self.motions.iter().map(|m| m.frames()).sum()

@@ -105,6 +105,9 @@ pub enum TrainEvent {
     Preparing(Preparing),
     /// A problem found before training ([`super::preflight`]): the scene is unlikely to learn.
     Warning(String),
+    /// Something the run did on its own schedule that shows in its curves (not a problem):
+    /// e.g. the mirrored copies joining the batches.
+    Note(String),
     /// Training stopped learning (dead units, or validation frozen); the remedy was applied.
     Stalled {
         /// Step of the validation pass that detected it.
@@ -204,6 +207,15 @@ pub trait Session: Send {
     /// Sets the schedule's factor on the learning rate for the next steps (1 = the rate as
     /// set; see [`super::config::lr_schedule_factor`]). Sessions without a schedule ignore it.
     fn set_schedule_factor(&mut self, _factor: f64) {}
+    /// Tells the session how far the run is: the fraction of its step or minute budget spent
+    /// (the larger of the two), `None` for an open-ended run. Sessions that do not use it
+    /// ignore it.
+    fn set_run_progress(&mut self, _progress: Option<f64>) {}
+    /// What the last step changed on the run's own schedule, in words, once (`None` most
+    /// steps); the loop sends it as [`TrainEvent::Note`].
+    fn take_note(&mut self) -> Option<String> {
+        None
+    }
     /// Applies new fabric parameters.
     fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), TrainError>;
     /// Applies a new window length in seconds.
@@ -544,6 +556,7 @@ fn run_loop<S: Session>(
         let decay = progress.map_or(1.0, |p| {
             super::config::lr_schedule_factor(p, fraction, final_factor)
         });
+        session.set_run_progress(progress);
         let warmup = super::config::warmup_factor(step, config.warmup_steps);
         if progress.is_some() || config.warmup_steps > 0 {
             session.set_schedule_factor(decay * warmup);
@@ -587,6 +600,9 @@ fn run_loop<S: Session>(
                 continue;
             }
         };
+        if let Some(note) = session.take_note() {
+            emit.send(TrainEvent::Note(note));
+        }
         history.train.push(record);
         emit.offer(TrainEvent::Step(record));
         if step.is_multiple_of(config.validate_every) {

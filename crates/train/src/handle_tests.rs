@@ -4,11 +4,13 @@ use std::sync::{Arc, Mutex};
 
 use super::*;
 
-/// Records the schedule factor of every step; validates to `validation`; its checkpoints
+/// Records the schedule factor and run progress of every step; validates to `validation`; its checkpoints
 /// succeed when `checkpoints` is set (writing nothing); everything else is inert.
 struct Recording {
     factors: Arc<Mutex<Vec<f64>>>,
     factor: f64,
+    progresses: Arc<Mutex<Vec<Option<f64>>>>,
+    progress: Option<f64>,
     validation: MetricRecord,
     checkpoints: bool,
 }
@@ -17,6 +19,9 @@ impl Session for Recording {
     fn step(&mut self) -> Result<MetricRecord, TrainError> {
         if let Ok(mut f) = self.factors.lock() {
             f.push(self.factor);
+        }
+        if let Ok(mut p) = self.progresses.lock() {
+            p.push(self.progress);
         }
         Ok(MetricRecord {
             loss: 1.0,
@@ -49,6 +54,9 @@ impl Session for Recording {
     fn set_schedule_factor(&mut self, factor: f64) {
         self.factor = factor;
     }
+    fn set_run_progress(&mut self, progress: Option<f64>) {
+        self.progress = progress;
+    }
     fn set_fabric(&mut self, _: FabricParams) -> Result<(), TrainError> {
         Ok(())
     }
@@ -61,6 +69,8 @@ fn recording(factors: &Arc<Mutex<Vec<f64>>>) -> Recording {
     Recording {
         factors: factors.clone(),
         factor: 1.0,
+        progresses: Arc::default(),
+        progress: None,
         validation: MetricRecord {
             loss: 1.0,
             ..Default::default()
@@ -191,4 +201,21 @@ fn a_broken_garment_is_named_in_the_summary_issue_13() {
     assert_eq!(summary.health.len(), 1);
     let warning = summary.health_warning().unwrap();
     assert!(warning.contains("mean strain 9.848"), "{warning}");
+}
+
+#[test]
+fn the_loop_tells_the_session_how_far_a_bounded_run_is() {
+    let factors = Arc::new(Mutex::new(Vec::new()));
+    let session = recording(&factors);
+    let progresses = session.progresses.clone();
+    let handle =
+        TrainerHandle::spawn_session(session, loop_config(Some(4), (0.0, 0.1), 0), None).unwrap();
+    while !handle.is_finished() {
+        handle.drain();
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    handle.join();
+    // Before step k + 1 the run is k / 4 through its steps.
+    let seen = progresses.lock().unwrap().clone();
+    assert_eq!(seen, [Some(0.0), Some(0.25), Some(0.5), Some(0.75)]);
 }

@@ -56,6 +56,12 @@ pub struct NeuralSession {
     learning_rate: f64,
     /// Factor of the learning-rate schedule on `learning_rate` (checkpoints keep the latter).
     schedule_factor: f64,
+    /// Fraction of the run's budget spent (`None`: open-ended), from the loop.
+    run_progress: Option<f64>,
+    /// Whether the mirrored copies are in the batches yet (for the one note when they join).
+    mirrored_in: bool,
+    /// What the last step changed on the run's schedule, for [`Session::take_note`].
+    note: Option<String>,
     config: TrainConfig,
     /// Training frame rate (the scene's), frames per second.
     fps: f32,
@@ -121,6 +127,9 @@ impl NeuralSession {
             optim,
             learning_rate: parts.config.learning_rate,
             schedule_factor: 1.0,
+            run_progress: None,
+            mirrored_in: false,
+            note: None,
             config: parts.config,
             fps: parts.fps,
             descriptors: parts.descriptors,
@@ -367,6 +376,13 @@ impl NeuralSession {
     }
 }
 
+/// Whether the mirrored copies of the training motions are in the batches at step `steps`
+/// of a run `progress` through its budget: both [`TrainConfig::mirror_from_step`] and
+/// [`TrainConfig::mirror_from_fraction`] reached (an open-ended run reaches any fraction).
+fn mirrored_joined(config: &TrainConfig, steps: u64, progress: Option<f64>) -> bool {
+    steps >= config.mirror_from_step && progress.is_none_or(|p| p >= config.mirror_from_fraction)
+}
+
 /// `x[:, k]` as `[B, V, 3]`.
 fn frame(x: &Tensor<4>, k: usize) -> Tensor<3> {
     let [b, _, v, c] = x.dims();
@@ -383,7 +399,18 @@ fn stack_frames(x: &Tensor<4>, from: usize, to: usize, rows: usize) -> Tensor<3>
 impl Session for NeuralSession {
     fn step(&mut self) -> Result<MetricRecord, TrainError> {
         let b = self.config.batch_size;
-        let with_mirrored = self.filter.steps_taken() >= self.config.mirror_from_step;
+        let with_mirrored =
+            mirrored_joined(&self.config, self.filter.steps_taken(), self.run_progress);
+        if with_mirrored && !self.mirrored_in && self.train.has_mirrored() {
+            self.mirrored_in = true;
+            let steps = self.filter.steps_taken();
+            if steps > 0 {
+                self.note = Some(format!(
+                    "from step {}, the mirrored copies of the training motions join the batches",
+                    steps + 1
+                ));
+            }
+        }
         let windows = self.train.sample_windows(b, with_mirrored, &mut self.rng);
         let augment = if self.terms.effects().dynamics && b >= 2 {
             ((self.config.augmentation_fraction * b as f32).round() as usize).min(b - 1)
@@ -570,6 +597,14 @@ impl Session for NeuralSession {
 
     fn set_schedule_factor(&mut self, factor: f64) {
         self.schedule_factor = factor;
+    }
+
+    fn set_run_progress(&mut self, progress: Option<f64>) {
+        self.run_progress = progress;
+    }
+
+    fn take_note(&mut self) -> Option<String> {
+        self.note.take()
     }
 
     fn set_fabric(&mut self, fabric: FabricParams) -> Result<(), TrainError> {

@@ -137,3 +137,61 @@ fn two_runs_prepared_with_one_seed_in_one_process_start_from_the_same_weights() 
     let (xb, _) = b.predict(&batch, 0, 0);
     assert_eq!(xa.into_data(), xb.into_data());
 }
+
+#[test]
+fn the_mirrored_copies_join_when_both_the_step_and_the_fraction_are_reached() {
+    use super::mirrored_joined;
+    let half = TrainConfig {
+        mirror_from_fraction: 0.5,
+        ..Default::default()
+    };
+    assert!(!mirrored_joined(&half, 10, Some(0.49)));
+    assert!(mirrored_joined(&half, 10, Some(0.5)));
+    // An open-ended run has no half: the copies are in from the start.
+    assert!(mirrored_joined(&half, 0, None));
+    let both = TrainConfig {
+        mirror_from_step: 100,
+        ..half
+    };
+    assert!(!mirrored_joined(&both, 99, Some(0.9)));
+    assert!(!mirrored_joined(&both, 100, Some(0.1)));
+    assert!(mirrored_joined(&both, 100, Some(0.5)));
+    // The default: half-way through a bounded run, from the first step of an open one.
+    let default = TrainConfig::default();
+    assert!(!mirrored_joined(&default, 0, Some(0.0)));
+    assert!(mirrored_joined(&default, 0, Some(0.5)));
+    assert!(mirrored_joined(&default, 0, None));
+    // Without the fraction: from the first step.
+    let throughout = TrainConfig {
+        mirror_from_fraction: 0.0,
+        ..default
+    };
+    assert!(mirrored_joined(&throughout, 0, Some(0.0)));
+}
+
+#[test]
+fn a_late_start_of_the_mirrored_copies_is_noted_once_when_they_join() {
+    use crate::handle::Session;
+    let dir = tempfile::tempdir().unwrap();
+    let mut late = session_with(
+        TrainConfig {
+            batch_size: 2,
+            mirror_from_step: 2,
+            ..Default::default()
+        },
+        dir.path(),
+    );
+    let notes: Vec<Option<String>> = (0..4)
+        .map(|_| {
+            late.step().unwrap();
+            late.take_note()
+        })
+        .collect();
+    assert_eq!(notes[..2], [None, None]);
+    let joined = notes[2].as_deref().unwrap_or_default();
+    assert!(
+        joined.contains("from step 3") && joined.contains("mirrored"),
+        "{joined}"
+    );
+    assert_eq!(notes[3], None);
+}
