@@ -58,8 +58,9 @@ pub struct NeuralSession {
     schedule_factor: f64,
     /// Fraction of the run's budget spent (`None`: open-ended), from the loop.
     run_progress: Option<f64>,
-    /// Whether the mirrored copies are in the batches yet (for the one note when they join).
-    mirrored_in: bool,
+    /// Whether the last step's batch could hold the mirrored copies (`None` before this
+    /// session's first step), for the one note when they join.
+    mirrored_in: Option<bool>,
     /// What the last step changed on the run's schedule, for [`Session::take_note`].
     note: Option<String>,
     config: TrainConfig,
@@ -128,7 +129,7 @@ impl NeuralSession {
             learning_rate: parts.config.learning_rate,
             schedule_factor: 1.0,
             run_progress: None,
-            mirrored_in: false,
+            mirrored_in: None,
             note: None,
             config: parts.config,
             fps: parts.fps,
@@ -401,16 +402,14 @@ impl Session for NeuralSession {
         let b = self.config.batch_size;
         let with_mirrored =
             mirrored_joined(&self.config, self.filter.steps_taken(), self.run_progress);
-        if with_mirrored && !self.mirrored_in && self.train.has_mirrored() {
-            self.mirrored_in = true;
-            let steps = self.filter.steps_taken();
-            if steps > 0 {
-                self.note = Some(format!(
-                    "from step {}, the mirrored copies of the training motions join the batches",
-                    steps + 1
-                ));
-            }
+        // Noted when they join during this session, not when a resumed run has them already.
+        if with_mirrored && self.mirrored_in == Some(false) && self.train.has_mirrored() {
+            self.note = Some(format!(
+                "from step {}, the mirrored copies of the training motions join the batches",
+                self.filter.steps_taken() + 1
+            ));
         }
+        self.mirrored_in = Some(with_mirrored);
         let windows = self.train.sample_windows(b, with_mirrored, &mut self.rng);
         let augment = if self.terms.effects().dynamics && b >= 2 {
             ((self.config.augmentation_fraction * b as f32).round() as usize).min(b - 1)

@@ -194,4 +194,16 @@ fn a_late_start_of_the_mirrored_copies_is_noted_once_when_they_join() {
         "{joined}"
     );
     assert_eq!(notes[3], None);
+    // With the copies from the first step (an open-ended run), nothing joins: no note.
+    let mut throughout = session_with(
+        TrainConfig {
+            batch_size: 2,
+            ..Default::default()
+        },
+        &dir.path().join("throughout"),
+    );
+    for _ in 0..2 {
+        throughout.step().unwrap();
+        assert_eq!(throughout.take_note(), None);
+    }
 }
