@@ -111,15 +111,13 @@ impl Progress {
     /// Share of the run's budget spent, 0..=1: the larger of its steps and its time, as the
     /// trainer counts them; 0 for an open-ended run.
     pub fn fraction(&self) -> f32 {
-        let by_steps = self
-            .max_steps
-            .filter(|&m| m > 0)
-            .map_or(0.0, |m| self.step as f64 / m as f64);
-        let by_time = self
-            .max_secs
-            .filter(|&m| m > 0.0)
-            .map_or(0.0, |m| self.elapsed_secs / m);
-        by_steps.max(by_time).clamp(0.0, 1.0) as f32
+        neural_cloth_train::config::run_progress(
+            self.step,
+            self.max_steps,
+            self.elapsed_secs,
+            self.max_secs,
+        )
+        .map_or(0.0, |p| p.clamp(0.0, 1.0) as f32)
     }
 }
 

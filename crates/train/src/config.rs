@@ -669,6 +669,24 @@ pub fn warmup_factor(step: u64, warmup_steps: u64) -> f64 {
     }
 }
 
+/// How far a run is through its budget: the larger of `step` of `max_steps` and
+/// `trained_secs` of `max_secs`, as a fraction (above 1 once a budget is overspent);
+/// `None` for an open-ended run. What the learning-rate schedule and the mirrored copies'
+/// start count, and what the app's progress bar shows.
+pub fn run_progress(
+    step: u64,
+    max_steps: Option<u64>,
+    trained_secs: f64,
+    max_secs: Option<f64>,
+) -> Option<f64> {
+    let by_steps = max_steps.map(|m| step as f64 / m.max(1) as f64);
+    let by_time = max_secs.map(|m| trained_secs / m.max(1e-9));
+    match (by_steps, by_time) {
+        (Some(a), Some(b)) => Some(a.max(b)),
+        (a, b) => a.or(b),
+    }
+}
+
 /// The learning-rate factor at `progress` (0..=1 of a bounded run): 1 until the last
 /// `decay_fraction` of the run, then a half cosine down to `final_factor`.
 pub fn lr_schedule_factor(progress: f64, decay_fraction: f64, final_factor: f64) -> f64 {

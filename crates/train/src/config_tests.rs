@@ -326,3 +326,13 @@ fn a_config_saved_without_the_copies_fraction_reads_as_copies_from_the_start() {
         new
     );
 }
+
+#[test]
+fn a_runs_progress_is_the_larger_share_of_its_steps_and_its_minutes() {
+    use crate::config::run_progress;
+    assert_eq!(run_progress(50, None, 30.0, None), None);
+    assert_eq!(run_progress(50, Some(200), 30.0, None), Some(0.25));
+    assert_eq!(run_progress(50, None, 30.0, Some(60.0)), Some(0.5));
+    assert_eq!(run_progress(50, Some(100), 30.0, Some(120.0)), Some(0.5));
+    assert_eq!(run_progress(10, Some(100), 90.0, Some(60.0)), Some(1.5));
+}

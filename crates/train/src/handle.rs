@@ -546,12 +546,8 @@ fn run_loop<S: Session>(
         {
             break;
         }
-        let progress = config
-            .max_steps
-            .map(|m| step as f64 / m.max(1) as f64)
-            .into_iter()
-            .chain(config.max_secs.map(|m| trained_secs / m.max(1e-9)))
-            .fold(None, |a: Option<f64>, p| Some(a.map_or(p, |a| a.max(p))));
+        let progress =
+            super::config::run_progress(step, config.max_steps, trained_secs, config.max_secs);
         let (fraction, final_factor) = config.lr_decay;
         let decay = progress.map_or(1.0, |p| {
             super::config::lr_schedule_factor(p, fraction, final_factor)
