@@ -213,7 +213,8 @@ pub struct TrainArgs {
     /// The mirrored copies join once this fraction of the run's budget (`--steps` or
     /// `--minutes`) is spent; 0..1, default 0.5 (0: with them from the start). The skirt
     /// after 1702 steps: 93.8 / 92.0 mm from the simulator on the spin / mirrored spin with
-    /// 0.5, 136.7 / 150.5 with 0; the t-shirt within a millimetre (docs/TRAINING.md round 25)
+    /// 0.5, 136.7 / 150.5 with 0; the t-shirt's held-out spin 2-9 mm closer after 2000 steps,
+    /// within a millimetre after 1100 (docs/TRAINING.md round 25)
     #[arg(long, value_name = "FRACTION", conflicts_with = "no_mirror")]
     pub mirror_from: Option<f64>,
     /// Experimental: the warm start also fits the mirrored copies, to the mirror image of
