@@ -513,7 +513,7 @@ fn w_zero_is_the_static_decode_and_w_scales_dynamics() {
         "dynamics change the output"
     );
     // forward_last matches the tail of the full forward pass.
-    let last = to_vec(net.forward_last(s, Some(dy), 1.0, 3, None));
+    let last = to_vec(net.forward_last(s, Some(dy), 1.0, 3, None, 0));
     let tail = &w1[w1.len() - last.len()..];
     assert!(max_diff(&last, tail) <= 1e-5 * max_abs(tail));
 }

@@ -32,7 +32,7 @@ pub use descriptors::{
 };
 pub use inference::{InferenceEngine, InferenceOptions};
 pub use kernels::Precision;
-pub use network::{ClothNet, ClothNetConfig, EncoderKind};
+pub use network::{ClothNet, ClothNetConfig, EncoderKind, RecurrentEncoder};
 pub use skinning::{GarmentLbs, SkinMatrixBuilder};
 pub use weights::InferenceWeights;
 

@@ -79,6 +79,49 @@ impl RecurrentEncoder {
         let x = self.mlp.forward(x.reshape([b, t, j * c]));
         super::gru_unroll::unroll(&self.gru, x, state)
     }
+
+    /// True when no layer of the encoder (per-joint, FC, GRU) has a bias: then all-zero
+    /// descriptors from a zero state give exactly zero codes.
+    pub fn bias_free(&self) -> bool {
+        let gru = &self.gru;
+        let gates = [&gru.update_gate, &gru.reset_gate, &gru.new_gate];
+        self.joint_mlp
+            .layers
+            .iter()
+            .chain(&self.mlp.layers)
+            .all(|l| l.bias.is_none())
+            && gates
+                .iter()
+                .all(|g| g.input_transform.bias.is_none() && g.hidden_transform.bias.is_none())
+    }
+
+    /// [`Self::forward`] when the first `quiet` rows of `desc` are all zero and start from a
+    /// zero state (still training windows): for a [`Self::bias_free`] encoder their codes are
+    /// exactly zero, so only the other rows are computed (their gradient is unchanged: a zero
+    /// input row adds nothing to any weight's gradient). Rows of `state`, when given, must be
+    /// zero for the quiet rows too. Other encoders compute every row.
+    pub fn forward_after_quiet(
+        &self,
+        desc: Tensor<4>,
+        state: Option<Tensor<2>>,
+        quiet: usize,
+    ) -> Tensor<3> {
+        let [b, t, _, _] = desc.dims();
+        let quiet = quiet.min(b);
+        if quiet == 0 || !self.bias_free() {
+            return self.forward(desc, state);
+        }
+        let device = desc.device();
+        let zeros = Tensor::zeros([quiet, t, self.gru.d_hidden], &device);
+        if quiet == b {
+            return zeros;
+        }
+        let moving = self.forward(
+            desc.narrow(0, quiet, b - quiet),
+            state.map(|s| s.narrow(0, quiet, b - quiet)),
+        );
+        Tensor::cat(vec![zeros, moving], 0)
+    }
 }
 
 /// Decoder MLP and the linear basis of rest-space offsets.
@@ -277,13 +320,15 @@ impl ClothNet {
     /// Codes of the last `last` frames (1..=T) for motion augmentation: `(z_S, Some(z_D))` for
     /// the disentangled variant (shuffle / detach `z_D`, then [`ClothNet::decode`]
     /// `z_S + w z_D`), `(z_S, None)` when static-only, `(z, None)` when entangled. Each
-    /// `[B, last, latent]`. The dynamic encoder's GRU starts from `state` (zero when `None`).
+    /// `[B, last, latent]`. The dynamic encoder's GRU starts from `state` (zero when `None`);
+    /// the first `quiet` rows are still windows ([`RecurrentEncoder::forward_after_quiet`]).
     pub fn encode_last(
         &self,
         static_desc: Tensor<4>,
         dynamic_desc: Option<Tensor<4>>,
         last: usize,
         state: Option<Tensor<2>>,
+        quiet: usize,
     ) -> (Tensor<3>, Option<Tensor<3>>) {
         let t = static_desc.dims()[1];
         let last = last.clamp(1, t.max(1));
@@ -297,7 +342,10 @@ impl ClothNet {
         }
         let z_s = self.latent_code(static_desc.narrow(1, start, last), None, 0.0);
         let z_d = match (dynamic_desc, &self.dynamic_encoder) {
-            (Some(d), Some(enc)) => Some(enc.forward(d, state).narrow(1, start, last)),
+            (Some(d), Some(enc)) => Some(
+                enc.forward_after_quiet(d, state, quiet)
+                    .narrow(1, start, last),
+            ),
             _ => None,
         };
         (z_s, z_d)
@@ -305,7 +353,8 @@ impl ClothNet {
 
     /// Offsets `[B, last, V, 3]` of the last `last` frames only (1..=T): the GRU runs over the
     /// whole window from `state` (zero when `None`), the static encoder and the decoder over
-    /// the last frames (training takes 3).
+    /// the last frames (training takes 3). The first `quiet` rows are still windows (all-zero
+    /// dynamic descriptors, zero state: [`RecurrentEncoder::forward_after_quiet`]).
     pub fn forward_last(
         &self,
         static_desc: Tensor<4>,
@@ -313,6 +362,7 @@ impl ClothNet {
         w: f32,
         last: usize,
         state: Option<Tensor<2>>,
+        quiet: usize,
     ) -> Tensor<4> {
         let t = static_desc.dims()[1];
         let last = last.clamp(1, t.max(1));
@@ -325,7 +375,10 @@ impl ClothNet {
         let z_s = self.latent_code(s_last, None, 0.0);
         match (dynamic_desc, &self.dynamic_encoder) {
             (Some(d), Some(enc)) if w != 0.0 => {
-                let z_d = enc.forward(d, state).narrow(1, start, last).mul_scalar(w);
+                let z_d = enc
+                    .forward_after_quiet(d, state, quiet)
+                    .narrow(1, start, last)
+                    .mul_scalar(w);
                 self.decode_with(z_s + z_d.clone(), Some(z_d))
             }
             _ => self.decode(z_s),

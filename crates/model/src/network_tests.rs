@@ -127,7 +127,7 @@ fn dynamic_branch_has_no_bias_and_shapes_hold() {
         [2, 4, 5, 3]
     );
     assert_eq!(
-        net.forward_last(s, Some(d), 1.0, 3, None).dims(),
+        net.forward_last(s, Some(d), 1.0, 3, None, 0).dims(),
         [2, 3, 5, 3]
     );
     let st = ClothNetConfig {
@@ -327,7 +327,7 @@ fn a_window_after_a_burn_in_continues_the_whole_sequence() {
     let d = Tensor::<4>::random([b, h + t, 3, DYNAMIC_DIM], Distribution::Default, &device);
     // The whole sequence in one pass, and the window alone after a burn-in of the frames
     // before it: the same last frames.
-    let whole = net.forward_last(s.clone(), Some(d.clone()), 1.0, 3, None);
+    let whole = net.forward_last(s.clone(), Some(d.clone()), 1.0, 3, None, 0);
     let state = net.burn_in_state(d.clone().narrow(1, 0, h));
     assert!(state.is_some());
     let window = net.forward_last(
@@ -336,15 +336,95 @@ fn a_window_after_a_burn_in_continues_the_whole_sequence() {
         1.0,
         3,
         state,
+        0,
     );
     let diff = (whole - window.clone()).abs().max().into_scalar::<f32>();
     assert!(diff < 1e-5, "burn-in then window differs by {diff}");
     // Without the burn-in the window starts from zero and differs.
-    let cold = net.forward_last(s.narrow(1, h, t), Some(d.narrow(1, h, t)), 1.0, 3, None);
+    let cold = net.forward_last(s.narrow(1, h, t), Some(d.narrow(1, h, t)), 1.0, 3, None, 0);
     let gap = (cold - window).abs().max().into_scalar::<f32>();
     assert!(gap > 1e-4, "the burn-in changed nothing ({gap})");
     assert!(
         net.burn_in_state(Tensor::zeros([b, 0, 3, DYNAMIC_DIM], &device))
             .is_none()
     );
+}
+
+#[test]
+fn still_rows_skipped_by_the_dynamic_encoder_change_no_output_and_no_gradient() {
+    use burn::tensor::Distribution;
+    let device = Device::flex().autodiff();
+    device.seed(11);
+    let net = small().init(3, 5, &device).unwrap();
+    let (b, t, quiet) = (4, 6, 2);
+    let s = Tensor::<4>::random([b, t, 3, STATIC_DIM], Distribution::Default, &device);
+    let moving = Tensor::<4>::random(
+        [b - quiet, t, 3, DYNAMIC_DIM],
+        Distribution::Normal(0.0, 1.0),
+        &device,
+    );
+    let d = Tensor::cat(
+        vec![Tensor::zeros([quiet, t, 3, DYNAMIC_DIM], &device), moving],
+        0,
+    );
+    let weights = Tensor::<4>::random([b, 3, 5, 3], Distribution::Normal(0.0, 1.0), &device);
+    let run = |q: usize| {
+        let y = net.forward_last(s.clone(), Some(d.clone()), 1.0, 3, None, q);
+        let g = (y.clone() * weights.clone()).sum().backward();
+        let enc = net.dynamic_encoder.as_ref().unwrap();
+        let grads: Vec<Vec<f32>> = [
+            enc.joint_mlp.layers[0].weight.grad(&g),
+            enc.mlp.layers[0].weight.grad(&g),
+            enc.gru.update_gate.hidden_transform.weight.grad(&g),
+            enc.gru.new_gate.input_transform.weight.grad(&g),
+            net.static_encoder.as_ref().unwrap().layers[0]
+                .weight
+                .grad(&g),
+            net.decoder.basis.weight.grad(&g),
+        ]
+        .into_iter()
+        .map(|t| t.unwrap().try_into_vec_as::<f32>().unwrap())
+        .collect();
+        (y.inner().try_into_vec_as::<f32>().unwrap(), grads)
+    };
+    let (y_all, g_all) = run(0);
+    let (y_skip, g_skip) = run(quiet);
+    let scale = y_all.iter().fold(1e-6f32, |m, v| m.max(v.abs()));
+    for (a, c) in y_all.iter().zip(&y_skip) {
+        assert!((a - c).abs() <= 1e-6 * scale, "output {a} against {c}");
+    }
+    for (k, (ga, gs)) in g_all.iter().zip(&g_skip).enumerate() {
+        let scale = ga.iter().fold(1e-6f32, |m, v| m.max(v.abs()));
+        assert!(
+            ga.iter().any(|v| *v != 0.0),
+            "parameter {k} got no gradient"
+        );
+        for (a, c) in ga.iter().zip(gs) {
+            assert!(
+                (a - c).abs() <= 1e-5 * scale,
+                "gradient {k}: {a} against {c}"
+            );
+        }
+    }
+    // An encoder with biases gives zero rows a nonzero code: it computes every row.
+    let en = ClothNetConfig {
+        encoder: EncoderKind::Entangled,
+        ..small()
+    }
+    .init(3, 5, &device)
+    .unwrap();
+    let enc = en.entangled_encoder.as_ref().unwrap();
+    assert!(!enc.bias_free());
+    assert!(net.dynamic_encoder.as_ref().unwrap().bias_free());
+    let zeros = Tensor::<4>::zeros([2, t, 3, STATIC_DIM + DYNAMIC_DIM], &device);
+    let mut biased = en.clone();
+    for l in &mut biased.entangled_encoder.as_mut().unwrap().joint_mlp.layers {
+        l.bias = l.bias.take().map(|p| p.map(|b| b.ones_like()));
+    }
+    let codes = biased
+        .entangled_encoder
+        .as_ref()
+        .unwrap()
+        .forward_after_quiet(zeros, None, 2);
+    assert!(codes.abs().max().into_scalar::<f32>() > 0.0);
 }

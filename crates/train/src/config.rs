@@ -163,6 +163,13 @@ pub struct TrainConfig {
     /// run has visited: towards 0.8 GB on the default scene (615 MB more peak memory after
     /// 300 steps, docs/BENCHMARKS.md). Default false.
     pub keep_posed_bodies: bool,
+    /// Still windows skip the dynamic encoder and the GRU: their dynamic descriptors are zero
+    /// and the dynamic branch has no bias, so their codes are exactly zero and they add nothing
+    /// to its gradient ([`neural_cloth_model::RecurrentEncoder::forward_after_quiet`]); the
+    /// other windows are computed as before. False computes every window (the path before,
+    /// kept for `bench`). Default true.
+    #[serde(default = "skip_still_dynamics_default")]
+    pub skip_still_dynamics: bool,
     /// A validation pass with at least this percentage of dead units in one revivable layer
     /// (decoder, static hidden layers) triggers the stall remedy (revive the dead units); 1..=100, default 75.
     pub dead_limit_pct: f64,
@@ -344,6 +351,7 @@ impl Default for TrainConfig {
             fused_physics: true,
             fused_adam: true,
             keep_posed_bodies: false,
+            skip_still_dynamics: true,
             fit_check: true,
             loss_frames: 1,
             warmup_steps: 0,
@@ -364,6 +372,11 @@ impl Default for TrainConfig {
             warm_start_mirror_frames: false,
         }
     }
+}
+
+/// [`TrainConfig::skip_still_dynamics`] of configurations saved without it.
+fn skip_still_dynamics_default() -> bool {
+    true
 }
 
 /// A configuration value outside its documented range.
@@ -397,6 +410,29 @@ impl TrainConfig {
     /// `ceil(window_secs * fps) + 3` (the last 3 are predicted).
     pub fn window_frames(&self, fps: f32) -> usize {
         (self.window_secs * fps).ceil().max(0.0) as usize + 3
+    }
+
+    /// Windows of a batch of `batch` whose dynamic codes are shuffled
+    /// ([`Self::augmentation_fraction`]); none without `dynamics` (the scene's effect) and at
+    /// least one window left unshuffled.
+    pub fn augmented_windows(&self, batch: usize, dynamics: bool) -> usize {
+        if dynamics && batch >= 2 {
+            ((self.augmentation_fraction * batch as f32).round() as usize).min(batch - 1)
+        } else {
+            0
+        }
+    }
+
+    /// Still windows of a batch of `batch` ([`Self::still_fraction`]), at most the windows left
+    /// by [`Self::augmented_windows`]; none without `dynamics` (every window is then already
+    /// quasi-static).
+    pub fn still_windows(&self, batch: usize, dynamics: bool) -> usize {
+        if dynamics {
+            ((self.still_fraction * batch as f32).round() as usize)
+                .min(batch - self.augmented_windows(batch, dynamics))
+        } else {
+            0
+        }
     }
 
     /// Frames before each window that only set its GRU state ([`TrainConfig::gru_burn_in_secs`]

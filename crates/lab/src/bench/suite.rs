@@ -341,8 +341,13 @@ fn training_cases(k: usize, batch: usize, variants: bool) -> Vec<TrainCase> {
         window_secs: TrainConfig::default().window_secs,
         ..default
     };
+    // The same with the still windows through the recurrent encoder (the path before).
+    let still_through = TrainCase {
+        skip_still: false,
+        ..default_window
+    };
     if !variants || k > 0 {
-        return vec![burn_adam, default, default_window];
+        return vec![burn_adam, default, default_window, still_through];
     }
     let all = default.effects;
     let mut cases = vec![
@@ -350,6 +355,7 @@ fn training_cases(k: usize, batch: usize, variants: bool) -> Vec<TrainCase> {
         burn_adam,
         default,
         default_window,
+        still_through,
     ];
     // Friction acts at contacts between frames: off with collision or dynamics.
     for effects in [

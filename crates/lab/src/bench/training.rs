@@ -50,6 +50,9 @@ pub struct TrainCase {
     /// Training window, seconds: 0.5 (the issue's reference scene, the default before round 12
     /// of issue 11) or 1 (today's default, [`TrainConfig::window_secs`]).
     pub window_secs: f32,
+    /// Still windows skip the dynamic encoder ([`TrainConfig::skip_still_dynamics`], the
+    /// default) or go through it (the path before).
+    pub skip_still: bool,
 }
 
 impl TrainCase {
@@ -62,6 +65,7 @@ impl TrainCase {
             fused_physics: true,
             fused_adam: true,
             window_secs: ISSUE_WINDOW_SECS,
+            skip_still: true,
         }
     }
 
@@ -76,11 +80,12 @@ impl TrainCase {
 
     /// Name of the path in logs and tables.
     pub fn path_label(&self) -> &'static str {
-        match (self.fused_physics, self.fused_adam) {
-            (true, true) => "fused physics, fused Adam",
-            (true, false) => "fused physics, burn Adam",
-            (false, true) => "burn physics, fused Adam",
-            (false, false) => "burn (reference)",
+        match (self.fused_physics, self.fused_adam, self.skip_still) {
+            (true, true, true) => "fused physics, fused Adam",
+            (true, true, false) => "fused physics, fused Adam, still windows through the GRU",
+            (true, false, _) => "fused physics, burn Adam",
+            (false, true, _) => "burn physics, fused Adam",
+            (false, false, _) => "burn (reference)",
         }
     }
 }
@@ -171,8 +176,19 @@ fn layers_flops(layers: &[Linear], rows: usize) -> f64 {
 
 /// The work of one step of `model` on `batch` windows of `frames` frames, the last
 /// `predicted` of which are decoded and skinned.
-pub fn step_flops(model: &ClothNet, batch: usize, frames: usize, predicted: usize) -> StepFlops {
-    let (window_rows, predicted_rows) = (batch * frames, batch * predicted);
+///
+/// `skipped` windows of the batch skip the recurrent encoder (still windows,
+/// [`TrainConfig::skip_still_dynamics`]).
+pub fn step_flops(
+    model: &ClothNet,
+    batch: usize,
+    skipped: usize,
+    frames: usize,
+    predicted: usize,
+) -> StepFlops {
+    let predicted_rows = batch * predicted;
+    // Rows of the recurrent encoder: every window but those that skip it (still windows).
+    let window_rows = batch.saturating_sub(skipped) * frames;
     let mut f = StepFlops::default();
     if let Some(s) = &model.static_encoder {
         f.encoders += layers_flops(&s.layers, predicted_rows);
@@ -227,6 +243,7 @@ impl Prepared {
             window_secs: case.window_secs,
             fused_physics: case.fused_physics,
             fused_adam: case.fused_adam,
+            skip_still_dynamics: case.skip_still,
             predrape_secs: predrape_secs.unwrap_or(defaults.predrape_secs),
             ..defaults
         };
@@ -303,9 +320,16 @@ pub fn bench_cases(
     for (run, mut t) in runs.into_iter().zip(times) {
         let model = run.session.model();
         let (vertices, input_joints) = (model.vertices, model.input_joints);
+        let still = if run.case.skip_still {
+            run.train
+                .still_windows(run.case.batch, run.case.effects.dynamics)
+        } else {
+            0
+        };
         let flops = step_flops(
             model,
             run.case.batch,
+            still,
             run.train.window_frames(run.fps),
             PREDICTED_FRAMES,
         );
@@ -438,7 +462,11 @@ mod tests {
         let config = ClothNetConfig::default();
         let model = config.init(4, 10, &device).unwrap();
         let (b, t, k) = (2, 5, 3);
-        let f = step_flops(&model, b, t, k);
+        let f = step_flops(&model, b, 0, t, k);
+        // Skipped (still) windows leave the recurrent encoder only.
+        let g = step_flops(&model, b, 1, t, k);
+        assert_eq!(2.0 * g.gru, f.gru);
+        assert_eq!(g.basis, f.basis);
         // Basis and dynamic basis: 3 × 2 × (B·K) × 512 × 30 each.
         assert_eq!(f.basis, 2.0 * 3.0 * 2.0 * (b * k * 512 * 30) as f64);
         // Three gates, input and hidden transforms 512 → 512, on every frame.

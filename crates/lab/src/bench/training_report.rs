@@ -36,6 +36,7 @@ fn find(r: &BenchReport, case: TrainCase) -> Option<&TrainBench> {
             && c.fused_physics == case.fused_physics
             && c.fused_adam == case.fused_adam
             && c.window_secs == case.window_secs
+            && c.skip_still == case.skip_still
     })
 }
 
@@ -222,10 +223,22 @@ pub fn training_gap(r: &BenchReport) -> String {
             let floor = floor_ms(r, t).map_or(String::new(), |f| {
                 format!(", floor {f:.1} ms, step / floor {:.2}×", t.ms_per_step / f)
             });
+            let through = TrainCase {
+                skip_still: false,
+                ..case
+            };
+            let skip = find(r, through).map_or(String::new(), |o| {
+                format!(
+                    "; {:.2}× faster than with the still windows through the recurrent encoder \
+                     ({:.1} ms)",
+                    o.ms_per_step / t.ms_per_step,
+                    o.ms_per_step
+                )
+            });
             let _ = writeln!(
                 s,
                 "- **Today's default window ({} s), batch {batch}:** {:.1} ms per step, {:.2}× the \
-                 issue's {} s window{floor}.",
+                 issue's {} s window{floor}{skip}.",
                 case.window_secs,
                 t.ms_per_step,
                 t.ms_per_step / half.ms_per_step,

@@ -95,11 +95,18 @@ impl NeuralSession {
         } else {
             (statics, dynamics, None)
         };
+        // Still windows (the first `still` rows) skip the dynamic encoder where allowed.
+        let quiet = if self.config.skip_still_dynamics {
+            still
+        } else {
+            0
+        };
         let split_static = self.config.static_from_still && still > 0 && still < b;
         let offsets = if (augment == 0 && !split_static) || !self.model.has_dynamic_branch() {
-            self.model.forward_last(statics, dynamics, 1.0, k, state)
+            self.model
+                .forward_last(statics, dynamics, 1.0, k, state, quiet)
         } else {
-            let (z_s, z_d) = self.model.encode_last(statics, dynamics, k, state);
+            let (z_s, z_d) = self.model.encode_last(statics, dynamics, k, state, quiet);
             match z_d {
                 Some(z_d) => {
                     let z_s = if split_static {

@@ -411,18 +411,10 @@ impl Session for NeuralSession {
         }
         self.mirrored_in = Some(with_mirrored);
         let windows = self.train.sample_windows(b, with_mirrored, &mut self.rng);
-        let augment = if self.terms.effects().dynamics && b >= 2 {
-            ((self.config.augmentation_fraction * b as f32).round() as usize).min(b - 1)
-        } else {
-            0
-        };
-        // Still windows come first, augmented ones last; without dynamics every window is
-        // already quasi-static.
-        let still = if self.terms.effects().dynamics {
-            ((self.config.still_fraction * b as f32).round() as usize).min(b - augment)
-        } else {
-            0
-        };
+        // Still windows come first, augmented ones last.
+        let dynamics = self.terms.effects().dynamics;
+        let augment = self.config.augmented_windows(b, dynamics);
+        let still = self.config.still_windows(b, dynamics);
         let predicted = self.config.loss_frames + 2;
         let frames = self.step_batch_frames();
         let batch =

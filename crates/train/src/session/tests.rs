@@ -207,3 +207,46 @@ fn a_late_start_of_the_mirrored_copies_is_noted_once_when_they_join() {
         assert_eq!(throughout.take_note(), None);
     }
 }
+
+#[test]
+fn still_windows_that_skip_the_dynamic_encoder_train_as_if_they_went_through_it() {
+    use crate::handle::Session;
+    let dir = tempfile::tempdir().unwrap();
+    let config = |skip: bool| TrainConfig {
+        batch_size: 4,
+        still_fraction: 0.5,
+        skip_still_dynamics: skip,
+        ..Default::default()
+    };
+    let mut skip = session_with(config(true), &dir.path().join("skip"));
+    let mut through = session_with(config(false), &dir.path().join("through"));
+    assert_eq!(skip.config.still_windows(4, true), 2);
+    for step in 0..3 {
+        let (a, b) = (skip.step().unwrap(), through.step().unwrap());
+        let gap = (a.loss - b.loss).abs();
+        assert!(
+            gap <= 1e-5 * b.loss.abs().max(1e-6),
+            "step {step}: loss {} against {}",
+            a.loss,
+            b.loss
+        );
+    }
+    // The weights after three steps, the dynamic encoder's included, agree too.
+    let weight = |s: &super::NeuralSession| -> Vec<f32> {
+        let enc = s.model.dynamic_encoder.as_ref().unwrap();
+        enc.gru
+            .update_gate
+            .hidden_transform
+            .weight
+            .val()
+            .into_data()
+            .to_vec()
+            .unwrap()
+    };
+    let (wa, wb) = (weight(&skip), weight(&through));
+    let initial = weight(&session_with(config(true), &dir.path().join("fresh")));
+    assert!(wa.iter().zip(&initial).any(|(a, c)| a != c), "no update");
+    for (a, b) in wa.iter().zip(&wb) {
+        assert!((a - b).abs() <= 1e-5, "{a} against {b}");
+    }
+}
