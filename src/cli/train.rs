@@ -103,7 +103,7 @@ pub struct TrainArgs {
     /// Adam learning rate (default 1e-3).
     #[arg(long)]
     pub learning_rate: Option<f64>,
-    /// Learning-rate factor of the decoder basis, in (0, 1] (default 1/512; 1 = the official
+    /// Learning-rate factor of the decoder basis, in (0, 1] (default 4/512 = 0.0078125; 1 = the official
     /// code's single rate, which kills flared garments: see docs/TRAINING.md).
     #[arg(long)]
     pub basis_lr_scale: Option<f64>,

@@ -31,7 +31,7 @@ use super::descriptors::DYNAMIC_DIM;
 
 pub use super::network_config::{
     ClothNetConfig, DEFAULT_BASIS_BIAS_LR_SCALE, DEFAULT_BASIS_LR_SCALE,
-    DEFAULT_DYNAMIC_BASIS_LR_SCALE, EncoderKind, MAX_WIDTH,
+    DEFAULT_DYNAMIC_BASIS_LR_SCALE, EncoderKind, LEGACY_BASIS_LR_SCALE, MAX_WIDTH,
 };
 
 /// A stack of linear layers, each followed by ReLU.

@@ -53,7 +53,7 @@ fn config_validation_and_toml_round_trip() {
     // A run saved before the dynamic basis existed reads without one, at the basis's rate.
     let old: ClothNetConfig = toml::from_str("latent = 12").unwrap();
     assert!(!old.dynamic_basis && ClothNetConfig::default().dynamic_basis);
-    assert_eq!(old.dynamic_basis_lr_scale, DEFAULT_BASIS_LR_SCALE);
+    assert_eq!(old.dynamic_basis_lr_scale, LEGACY_BASIS_LR_SCALE);
     assert_eq!(
         ClothNetConfig::default().dynamic_basis_lr_scale,
         DEFAULT_DYNAMIC_BASIS_LR_SCALE
