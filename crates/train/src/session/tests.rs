@@ -240,7 +240,7 @@ fn still_windows_that_skip_the_dynamic_encoder_train_as_if_they_went_through_it(
             .weight
             .val()
             .into_data()
-            .to_vec()
+            .try_to_vec::<f32>()
             .unwrap()
     };
     let (wa, wb) = (weight(&skip), weight(&through));
