@@ -215,14 +215,14 @@ fn render_verdicts(s: &mut String, checks: &[TrainingCheck]) {
         {
             row(
                 "mean distance on still poses ≤ 2 mm",
-                format!("{:.1} mm", still.mean_mm),
+                mm_against(still.mean_mm, STILL_DISTANCE_MM),
                 Some(still.mean_mm <= STILL_DISTANCE_MM),
             );
         }
         if m.hem.is_none() && m.still_frames < m.frames {
             row(
                 "mean distance on a moving motion ≤ 12 mm",
-                format!("{:.1} mm", m.all.mean_mm),
+                mm_against(m.all.mean_mm, SPIN_DISTANCE_MM),
                 Some(m.all.mean_mm <= SPIN_DISTANCE_MM),
             );
             if let (Some(net), Some(sim)) = (
@@ -324,6 +324,17 @@ fn render_verdicts(s: &mut String, checks: &[TrainingCheck]) {
         );
     }
     let _ = writeln!(s);
+}
+
+/// `value_mm` to a tenth of a millimetre, or to a hundredth where the tenth would read as
+/// `limit_mm` while the value is over it (2.02 against a 2 mm target reads "2.02 mm", not "2.0").
+fn mm_against(value_mm: f64, limit_mm: f64) -> String {
+    let tenths = format!("{value_mm:.1}");
+    if value_mm > limit_mm && tenths == format!("{limit_mm:.1}") {
+        format!("{value_mm:.2} mm")
+    } else {
+        format!("{tenths} mm")
+    }
 }
 
 #[cfg(test)]
@@ -528,5 +539,13 @@ mod tests {
         let mut s = String::new();
         render_training_checks(&mut s, &[]);
         assert!(s.is_empty());
+    }
+
+    #[test]
+    fn a_distance_just_over_its_target_does_not_read_as_the_target() {
+        assert_eq!(mm_against(2.0206, STILL_DISTANCE_MM), "2.02 mm");
+        assert_eq!(mm_against(1.97, STILL_DISTANCE_MM), "2.0 mm");
+        assert_eq!(mm_against(2.3, STILL_DISTANCE_MM), "2.3 mm");
+        assert_eq!(mm_against(18.75, SPIN_DISTANCE_MM), "18.8 mm");
     }
 }
