@@ -495,6 +495,8 @@ fn run_loop<S: Session>(
     let mut trained_secs = history.train.last().map(|r| r.wall_secs).unwrap_or(0.0);
     let mut paused = false;
     let mut last_remedy = 0u64;
+    // The newest snapshot sent in the loop: the step it was taken at, and the weights.
+    let mut last_snapshot: Option<(u64, Arc<neural_cloth_model::ModelArtifact>)> = None;
     emit.send(TrainEvent::Started {
         run_dir: config.run_dir.clone(),
         step,
@@ -562,10 +564,27 @@ fn run_loop<S: Session>(
         trained_secs += started.elapsed().as_secs_f64();
         // Reading every weight back costs a copy of the model, so weights are checked on the
         // snapshot and checkpoint cadence; a non-finite weight shows in the loss soon anyway.
-        let check_weights = (step + 1).is_multiple_of(config.snapshot_every)
-            || (step + 1).is_multiple_of(config.checkpoint_every);
+        // On a snapshot step the snapshot's own copy is checked and then sent: one read-back.
+        let snapshot_due = (step + 1).is_multiple_of(config.snapshot_every);
+        let check_weights = snapshot_due || (step + 1).is_multiple_of(config.checkpoint_every);
+        let mut snapshot = None;
+        let weights_ok = |snapshot: &mut Option<_>| {
+            if !check_weights {
+                return true;
+            }
+            match snapshot_due.then(|| session.snapshot()) {
+                Some(Ok(s)) => {
+                    let ok = s.weights.validate().is_ok();
+                    if ok {
+                        *snapshot = Some(s);
+                    }
+                    ok
+                }
+                Some(Err(_)) | None => session.weights_finite(),
+            }
+        };
         let record = match result {
-            Ok(mut r) if r.is_finite() && (!check_weights || session.weights_finite()) => {
+            Ok(mut r) if r.is_finite() && weights_ok(&mut snapshot) => {
                 step += 1;
                 r.step = step;
                 r.wall_secs = trained_secs;
@@ -613,6 +632,8 @@ fn run_loop<S: Session>(
                 stall_reason(&history.validation, config.dead_limit_pct, last_remedy)
             {
                 last_remedy = step;
+                // The remedy changes weights: a snapshot read before it is stale.
+                snapshot = None;
                 let remedy = remedy_stall(session)?;
                 emit.send(TrainEvent::Stalled {
                     step,
@@ -622,12 +643,11 @@ fn run_loop<S: Session>(
             }
         }
         if step.is_multiple_of(config.snapshot_every)
-            && let Ok(weights) = session.snapshot()
+            && let Some(weights) = snapshot.map_or_else(|| session.snapshot().ok(), Some)
         {
-            emit.offer(TrainEvent::Snapshot {
-                step,
-                weights: Arc::new(weights),
-            });
+            let weights = Arc::new(weights);
+            last_snapshot = Some((step, weights.clone()));
+            emit.offer(TrainEvent::Snapshot { step, weights });
         }
         if step.is_multiple_of(config.checkpoint_every) {
             checkpoint_or_warn(session, step, &history, config.checkpoint_every, emit);
@@ -642,11 +662,14 @@ fn run_loop<S: Session>(
         history.validation.push(v);
         emit.send(TrainEvent::Validation(v));
     }
-    if let Ok(weights) = session.snapshot() {
-        emit.send(TrainEvent::Snapshot {
-            step,
-            weights: Arc::new(weights),
-        });
+    // The last step's snapshot, when it had one, is these weights: sent again (an offered
+    // snapshot may have been dropped) without reading them back a second time.
+    let last = match last_snapshot {
+        Some((at, weights)) if at == step => Some(weights),
+        _ => session.snapshot().ok().map(Arc::new),
+    };
+    if let Some(weights) = last {
+        emit.send(TrainEvent::Snapshot { step, weights });
     }
     let path = session
         .checkpoint(step, &history)

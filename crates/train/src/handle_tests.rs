@@ -219,3 +219,134 @@ fn the_loop_tells_the_session_how_far_a_bounded_run_is() {
     let seen = progresses.lock().unwrap().clone();
     assert_eq!(seen, [Some(0.0), Some(0.25), Some(0.5), Some(0.75)]);
 }
+
+/// Counts how often the loop reads the weights back: as a snapshot, or to check them.
+struct ReadBacks {
+    artifact: neural_cloth_model::ModelArtifact,
+    snapshots: Arc<Mutex<usize>>,
+    checks: Arc<Mutex<usize>>,
+}
+
+impl Session for ReadBacks {
+    fn step(&mut self) -> Result<MetricRecord, TrainError> {
+        Ok(MetricRecord {
+            loss: 1.0,
+            ..Default::default()
+        })
+    }
+    fn validate(&mut self) -> Result<MetricRecord, TrainError> {
+        Ok(MetricRecord {
+            loss: 1.0,
+            ..Default::default()
+        })
+    }
+    fn weights_finite(&self) -> bool {
+        *self.checks.lock().unwrap() += 1;
+        self.artifact.weights.validate().is_ok()
+    }
+    fn snapshot(&self) -> Result<neural_cloth_model::ModelArtifact, TrainError> {
+        *self.snapshots.lock().unwrap() += 1;
+        Ok(self.artifact.clone())
+    }
+    fn checkpoint(&mut self, _: u64, _: &MetricHistory) -> Result<PathBuf, TrainError> {
+        Ok(PathBuf::from("unused/checkpoint"))
+    }
+    fn restore_last_checkpoint(&mut self) -> Result<u64, TrainError> {
+        Err(TrainError::NoCheckpointYet)
+    }
+    fn learning_rate(&self) -> f64 {
+        1e-3
+    }
+    fn set_learning_rate(&mut self, _: f64) {}
+    fn set_fabric(&mut self, _: FabricParams) -> Result<(), TrainError> {
+        Ok(())
+    }
+    fn set_window(&mut self, _: f32) -> Result<(), TrainError> {
+        Ok(())
+    }
+}
+
+/// A small network's weights as the loop's snapshots carry them.
+fn small_artifact() -> neural_cloth_model::ModelArtifact {
+    let config = neural_cloth_model::ClothNetConfig {
+        static_hidden: vec![8],
+        joint_hidden: vec![4, 4],
+        dynamic_hidden: vec![16],
+        latent: 12,
+        decoder_hidden: vec![10],
+        ..Default::default()
+    };
+    let model = config.init(3, 5, &burn::tensor::Device::flex()).unwrap();
+    let weights = neural_cloth_model::InferenceWeights::from_module(&model).unwrap();
+    neural_cloth_model::ModelArtifact::new(weights, Default::default(), 30.0)
+}
+
+/// Runs `steps` steps of `session` (snapshots every 4, checkpoints every 6); returns the
+/// snapshot events and how the run ended.
+fn run_read_backs(session: ReadBacks, steps: u64) -> (usize, Result<RunSummary, Arc<TrainError>>) {
+    let config = LoopConfig {
+        snapshot_every: 4,
+        checkpoint_every: 6,
+        ..loop_config(Some(steps), (0.0, 1.0), 0)
+    };
+    let handle = TrainerHandle::spawn_session(session, config, None).unwrap();
+    let mut snapshot_events = 0;
+    let end = loop {
+        match handle.recv_timeout(Duration::from_secs(10)) {
+            Some(TrainEvent::Snapshot { .. }) => snapshot_events += 1,
+            Some(TrainEvent::Finished(result)) => break result,
+            Some(_) => {}
+            None => panic!("the run did not finish"),
+        }
+    };
+    handle.join();
+    (snapshot_events, end)
+}
+
+/// A snapshot step reads the weights back once: the snapshot's copy is checked for
+/// non-finite weights and then sent, and sent again as the final snapshot when the run ends
+/// on it (issue 12: the loop read them twice, three times on the last step).
+#[test]
+fn a_snapshot_step_reads_the_weights_back_once() {
+    let snapshots = Arc::new(Mutex::new(0));
+    let checks = Arc::new(Mutex::new(0));
+    let session = ReadBacks {
+        artifact: small_artifact(),
+        snapshots: snapshots.clone(),
+        checks: checks.clone(),
+    };
+    let (events, end) = run_read_backs(session, 12);
+    assert!(end.is_ok(), "{end:?}");
+    // Snapshots at steps 4, 8 and 12, the last sent again at the end without a read-back;
+    // the checkpoint of step 6 alone checks the weights.
+    assert_eq!(*snapshots.lock().unwrap(), 3);
+    assert_eq!(events, 4);
+    assert_eq!(*checks.lock().unwrap(), 1);
+    // A run that does not end on a snapshot step reads the final weights once more.
+    let snapshots = Arc::new(Mutex::new(0));
+    let session = ReadBacks {
+        artifact: small_artifact(),
+        snapshots: snapshots.clone(),
+        checks: Arc::default(),
+    };
+    let (events, end) = run_read_backs(session, 10);
+    assert!(end.is_ok(), "{end:?}");
+    assert_eq!((*snapshots.lock().unwrap(), events), (3, 3));
+    // A snapshot with a non-finite weight is a divergence, not a picture to send.
+    let mut artifact = small_artifact();
+    artifact.weights.basis.weight[0] = f32::NAN;
+    let session = ReadBacks {
+        artifact,
+        snapshots: Arc::default(),
+        checks: Arc::default(),
+    };
+    let (events, end) = run_read_backs(session, 12);
+    assert_eq!(events, 0);
+    assert!(
+        matches!(
+            end.as_ref().map_err(|e| &**e),
+            Err(TrainError::RollbackFailed { .. })
+        ),
+        "{end:?}"
+    );
+}
