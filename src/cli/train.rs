@@ -272,7 +272,7 @@ pub struct TrainArgs {
     /// false (default: the model's default; see docs/TRAINING.md)
     #[arg(long)]
     pub dynamic_basis: Option<bool>,
-    /// Learning-rate factor of the dynamic basis, in (0, 1] (default 2/512)
+    /// Learning-rate factor of the dynamic basis, in (0, 1] (default 8/512)
     #[arg(long)]
     pub dynamic_basis_lr_scale: Option<f64>,
     /// Fraction of each batch given another sample's dynamic code, trained with the static
