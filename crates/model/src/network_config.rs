@@ -129,10 +129,11 @@ pub const LEGACY_BASIS_LR_SCALE: f64 = 1.0 / 512.0;
 
 /// Default learning-rate factor of the dynamic basis: twice [`DEFAULT_BASIS_LR_SCALE`], eight
 /// over the default decoder width (2/512 before round 27). With the basis at 4/512 it brought
-/// the default t-shirt after 1100 steps closer to the simulator on five seeds' worth of checks
-/// (seed 53: held-out spin 21.2 against 24.4 mm, run 9.5 against 12.1, idle 2.1 against 2.6)
-/// and the skirt after 1702 steps from 98.0 to 60.0 mm on the spin (seed 101) with its hem
-/// within 6 % of the simulator's when still (docs/TRAINING.md, rounds 26 and 27).
+/// the default t-shirt after 1100 steps closer to the simulator on every motion of all three
+/// seeds checked (seed 53: held-out spin 21.2 against 24.4 mm, run 9.5 against 12.1, idle
+/// 2.1 against 2.6) and the skirt after 1702 steps from 98.0 to 63.1 mm on the spin (seed
+/// 101) with its hem within 7 % of the simulator's when still (docs/TRAINING.md, rounds 26
+/// and 27).
 pub const DEFAULT_DYNAMIC_BASIS_LR_SCALE: f64 = 8.0 / 512.0;
 
 /// Default [`ClothNetConfig::basis_bias_lr_scale`].
