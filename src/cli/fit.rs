@@ -46,8 +46,8 @@ pub struct FitArgs {
     /// Do not relax the aligned garment with the simulator.
     #[arg(long)]
     pub no_relax: bool,
-    /// Do not carry a garment made for other arms (a T-pose shirt on an A-pose avatar) back
-    /// to the avatar's rest pose.
+    /// Do not carry a garment made for other arms (a T-pose shirt on an A-pose avatar) or
+    /// another stance (trousers made with the feet apart) back to the avatar's rest pose.
     #[arg(long)]
     pub no_repose: bool,
     /// Seconds the simulator lets the garment settle on the rest pose (default 1).
@@ -185,21 +185,45 @@ fn summary(fitted: &Fitted, avatar: &Avatar, args: &FitArgs) -> String {
     let relaxed = r
         .inside_relaxed
         .map_or_else(|| "not relaxed".to_string(), |n| format!("{n} relaxed"));
-    let side = if r.sleeves_deg > 0.0 {
-        "above"
-    } else {
-        "below"
+    let limb = |degrees: f32, made: String, matches: &str| {
+        if degrees == 0.0 {
+            matches.to_string()
+        } else if r.reposed {
+            format!("{made}; re-posed to its rest pose")
+        } else {
+            format!("{made}; not re-posed (--no-repose)")
+        }
     };
-    let made = format!(
-        "made {:.0} degrees {side} the avatar's arms",
-        r.sleeves_deg.abs()
+    let sleeves = limb(
+        r.sleeves_deg,
+        format!(
+            "made {:.0} degrees {} the avatar's arms",
+            r.sleeves_deg.abs(),
+            if r.sleeves_deg > 0.0 {
+                "above"
+            } else {
+                "below"
+            }
+        ),
+        "match the avatar's arms",
     );
-    let sleeves = if r.sleeves_deg == 0.0 {
-        "match the avatar's arms".to_string()
-    } else if r.reposed {
-        format!("{made}; re-posed to its rest pose")
-    } else {
-        format!("{made}; not re-posed (--no-repose)")
+    let legs = match r.legs_deg {
+        None => String::new(),
+        Some(d) => {
+            let made = format!(
+                "made {:.0} degrees {} than the avatar's",
+                d.abs(),
+                if d > 0.0 {
+                    "wider apart"
+                } else {
+                    "closer together"
+                }
+            );
+            format!(
+                "\x20 legs:    {}\n",
+                limb(d, made, "match the avatar's legs")
+            )
+        }
     };
     format!(
         "fitted '{}' ({} vertices) onto avatar '{}' ({:.2} m tall)\n\
@@ -208,7 +232,7 @@ fn summary(fitted: &Fitted, avatar: &Avatar, args: &FitArgs) -> String {
          \x20 mirrored left/right: {}{}\n\
          \x20 scale:   {:.3} about the garment's centre{}\n\
          \x20 offset:  ({:.3}, {:.3}, {:.3}) m of the garment's centre{}\n\
-         \x20 sleeves: {sleeves}\n\
+         \x20 sleeves: {sleeves}\n{legs}\
          \x20 near the body: {:.0} % of its area within 30 mm of the ease\n\
          \x20 vertices inside the body: {} as given, {} aligned, {relaxed}\n",
         fitted.name,

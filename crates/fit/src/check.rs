@@ -1,15 +1,16 @@
 //! How well a garment already placed on the avatar's rest pose fits it, for the training's
 //! preflight check: the share of its vertices inside the body, the share outside the body's
 //! bounding box, whether the boxes overlap at all, the scale and shift that fitting it
-//! ([`super::align`], as `neural-cloth fit` does) would apply, and how far its sleeves are
-//! from the avatar's arm pose ([`super::repose`]).
+//! ([`super::align`], as `neural-cloth fit` does) would apply, and how far its sleeves (trouser
+//! legs) are from the avatar's arm (leg) pose ([`super::repose`]).
 
 use neural_cloth_core::geometry::{TriMesh, Vec3};
 use neural_cloth_core::scene::Avatar;
 
 use super::align::{AlignSettings, Placement, Points};
 use super::probe::{BodyProbe, bounds_of};
-use super::{FitError, FitOptions, openings, place, repose};
+use super::repose::LimbAngles;
+use super::{FitError, FitOptions, openings, place};
 
 /// Limits beyond which a garment is clearly wrong for the avatar.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -30,6 +31,9 @@ pub struct FitLimits {
     /// Largest angle between the garment's sleeves and the avatar's upper arms, degrees;
     /// default 15 (a T-pose shirt on an A-pose avatar is about 40 off).
     pub max_sleeve_deg: f32,
+    /// Largest angle between the legs of trousers or shorts and the avatar's thighs,
+    /// degrees; default 10 (trousers made on a body standing with its feet apart).
+    pub max_legs_deg: f32,
 }
 
 impl Default for FitLimits {
@@ -41,6 +45,7 @@ impl Default for FitLimits {
             max_scale_change: 0.15,
             max_shift_m: 0.1,
             max_sleeve_deg: 15.0,
+            max_legs_deg: 10.0,
         }
     }
 }
@@ -64,6 +69,9 @@ pub struct FitCheck {
     /// How many degrees above the avatar's upper arms its sleeves were made (0 when they
     /// match, or not measured).
     pub sleeves_deg: f32,
+    /// How many degrees beyond the avatar's thighs its legs were spread (0 when they match,
+    /// when it has no leg openings, or not measured).
+    pub legs_deg: f32,
 }
 
 /// Measures `mesh` (metres, on the rest pose) against `avatar`'s body; `limits` gives the
@@ -105,11 +113,10 @@ pub fn check_fit(
         None
     };
     let fitted = fitted.unwrap_or(start);
-    let sleeves_deg = match repose::Arms::of(avatar) {
-        Some(arms) if overlaps => {
-            repose::sleeve_angle(avatar, &arms, positions, &weights, options.ease_m)?.0
-        }
-        _ => 0.0,
+    let angles = if overlaps {
+        LimbAngles::measure(avatar, mesh, positions, &weights, options.ease_m)?
+    } else {
+        LimbAngles::default()
     };
     Ok(FitCheck {
         vertices: n,
@@ -118,7 +125,8 @@ pub fn check_fit(
         overlaps,
         suggested_scale: fitted.scale,
         suggested_shift_m: fitted.offset_m,
-        sleeves_deg,
+        sleeves_deg: angles.sleeves_deg,
+        legs_deg: angles.legs_deg.unwrap_or(0.0),
     })
 }
 
@@ -170,6 +178,18 @@ impl FitCheck {
                     "above"
                 } else {
                     "below"
+                }
+            ));
+        }
+        if self.legs_deg.abs() > limits.max_legs_deg {
+            out.push(format!(
+                "its legs were made {:.0} degrees {} than the avatar's (for another stance; \
+                 fitting re-poses it)",
+                self.legs_deg.abs(),
+                if self.legs_deg > 0.0 {
+                    "wider apart"
+                } else {
+                    "closer together"
                 }
             ));
         }

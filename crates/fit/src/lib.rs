@@ -10,8 +10,9 @@
 //!    the garment's surface at the ease outside the body where it is close to it;
 //! 3. **mirror**: faces turning towards the body mean the file was mirrored left/right (the
 //!    positions reflected, the faces not): it is mirrored back;
-//! 4. **sleeves** ([`repose`]): a garment made for other arms (a T-pose shirt on an A-pose
-//!    avatar) is carried back to the avatar's rest pose by inverse skinning;
+//! 4. **limbs** ([`repose`]): a garment made for other arms (a T-pose shirt on an A-pose
+//!    avatar) or another stance (trousers made with the feet apart) is carried back to the
+//!    avatar's rest pose by inverse skinning;
 //! 5. **relax** ([`relax`]): the reference simulator lets the garment settle on the rest pose
 //!    (the warm start's pre-drape), which pushes out what is left inside the body.
 //!
@@ -119,8 +120,9 @@ pub struct FitOptions {
     pub ease_m: f32,
     /// Relaxation by the simulator after the alignment; `None` skips it. Default: on.
     pub relax: Option<RelaxSettings>,
-    /// Carry a garment made for other arms (a T-pose shirt on an A-pose avatar) back to the
-    /// avatar's rest pose ([`repose`]); default true.
+    /// Carry a garment made for other arms (a T-pose shirt on an A-pose avatar) or another
+    /// stance (trousers made with the feet apart) back to the avatar's rest pose
+    /// ([`repose`]); default true.
     pub repose: bool,
 }
 
@@ -192,7 +194,12 @@ pub struct FitReport {
     /// How many degrees above the avatar's upper arms the garment's sleeves were made (0
     /// when they match); see [`repose`].
     pub sleeves_deg: f32,
-    /// Whether the garment was carried back to the avatar's rest pose for its sleeves.
+    /// How many degrees beyond the avatar's thighs the garment's legs were spread (0 when
+    /// they match; `None` when it has no opening for each leg or the avatar no two legs);
+    /// see [`repose`].
+    pub legs_deg: Option<f32>,
+    /// Whether the garment was carried back to the avatar's rest pose for its sleeves or
+    /// legs.
     pub reposed: bool,
     /// The placement after the unit conversion: mirror, scale about the garment's centre,
     /// translation of the centre (metres).
@@ -218,14 +225,17 @@ impl FitReport {
         let relaxed = self
             .inside_relaxed
             .map_or_else(|| "not relaxed".to_string(), |n| format!("{n} relaxed"));
-        let d = self.sleeves_deg;
-        let sleeves = if d == 0.0 {
-            String::new()
-        } else if self.reposed {
-            format!("sleeves re-posed by {:.0} degrees, ", -d)
-        } else {
-            format!("sleeves {d:.0} degrees off the arms (not re-posed), ")
+        let limb = |what: &str, d: f32, of: &str| {
+            if d == 0.0 {
+                String::new()
+            } else if self.reposed {
+                format!("{what} re-posed by {:.0} degrees, ", -d)
+            } else {
+                format!("{what} {d:.0} degrees off the {of} (not re-posed), ")
+            }
         };
+        let sleeves = limb("sleeves", self.sleeves_deg, "arms")
+            + &limb("legs", self.legs_deg.unwrap_or(0.0), "thighs");
         format!(
             "units {}{}, {}{sleeves}scale {:.3}, offset {}; vertices inside the body: {} as \
              given, {} aligned, {relaxed} (of {})",
@@ -262,8 +272,6 @@ pub struct Fitted {
 /// Share of the area that a fitted garment must have near the body; below it, the garment
 /// does not wrap the body and the fit is refused.
 pub const MIN_FIT_SHARE: f32 = 0.2;
-/// Winding score (see [`BodyProbe::winding_score`]) below which the garment is mirrored.
-const MIRRORED_WINDING: f32 = -0.2;
 
 /// Loads the garment file at `path` (OBJ, glTF or GLB) in its own units and fits it to
 /// `avatar` (see [`fit_mesh`]).
@@ -321,12 +329,12 @@ pub fn fit_mesh(
     let weights = vertex_weights(&given);
     let place = |given: &TriMesh| {
         let (lo, hi) = probe::bounds_of(&given.positions)?;
-        place_mesh(&probe, given, &weights, (lo + hi) * 0.5, options)
+        place::place_mesh(&probe, given, &weights, (lo + hi) * 0.5, options)
     };
     let not_placed = || no_fit("no scale and height put it around the body".into());
     let mut placement = place(&given).ok_or_else(not_placed)?;
-    // Sleeves made for other arms: re-posed in the file's frame, then placed again.
-    let (sleeves_deg, reposed) = repose::repose_given(
+    // Sleeves or legs made for other limbs: re-posed in the file's frame, then placed again.
+    let (angles, reposed) = repose::repose_given(
         avatar,
         &given,
         &placement,
@@ -336,7 +344,13 @@ pub fn fit_mesh(
     )?;
     if let Some(reposed) = &reposed {
         given = reposed.clone();
-        placement = place(&given).ok_or_else(not_placed)?;
+        // Carried back at `placement`, the garment lies on the rest pose there. A shirt is
+        // placed again (the first placement had its sleeves out). Trousers keep theirs: they
+        // were placed by their seat, and their legs, once on the thighs, would let the whole
+        // garment slide down and grow alike (a thigh is a cone).
+        if !angles.legs_deg.is_some_and(|d| d != 0.0) {
+            placement = place(&given).ok_or_else(not_placed)?;
+        }
     }
     let mut placed = given.clone();
     placed.positions = placement.apply_all(&given.positions);
@@ -363,7 +377,8 @@ pub fn fit_mesh(
             units,
             units_detected: options.units == Units::Auto,
             up: UpAxis::Y,
-            sleeves_deg,
+            sleeves_deg: angles.sleeves_deg,
+            legs_deg: angles.legs_deg,
             reposed: reposed.is_some(),
             placement,
             fit_share,
@@ -375,47 +390,6 @@ pub fn fit_mesh(
         mesh: placed,
         aligned,
     })
-}
-
-/// The placement of `given` (metres, centred at `centre_m`): the alignment, then, when its
-/// faces turn towards the body and the options allow, mirrored and refined again.
-fn place_mesh(
-    probe: &BodyProbe,
-    given: &TriMesh,
-    weights: &[f32],
-    centre_m: Vec3,
-    options: &FitOptions,
-) -> Option<Placement> {
-    let points = align::Points {
-        positions: &given.positions,
-        weights,
-    };
-    let settings = AlignSettings {
-        ease_m: options.ease_m,
-        scale_range: options.scale_range,
-        fixed_scale: options.scale,
-        fixed_offset_m: options.offset_m,
-        arm_openings: openings::has_arm_openings(given),
-    };
-    let mut start = Placement::identity(centre_m);
-    start.mirrored = options.mirror == MirrorMode::Flip;
-    let placement = align(probe, points, &start, &settings, options.scale_dead_zone)?;
-    let mut placed = given.clone();
-    placed.positions = placement.apply_all(&given.positions);
-    if options.mirror != MirrorMode::Auto || probe.winding_score(&placed) >= MIRRORED_WINDING {
-        return Some(placement);
-    }
-    let mirrored = Placement {
-        mirrored: !placement.mirrored,
-        ..placement
-    };
-    Some(place::refine_with_dead_zone(
-        probe,
-        points,
-        &mirrored,
-        &settings,
-        options.scale_dead_zone,
-    ))
 }
 
 /// Checks the placed garment: it must overlap the body's bounding box (only a fixed offset

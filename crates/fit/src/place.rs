@@ -1,12 +1,20 @@
 //! Placing a garment: the alignment's coarse search and refinement of the best candidates,
 //! the choice between them (a candidate must wrap the trunk, below the shoulders for a
 //! garment without openings for the arms, and rest on the body; of the near-best, the
-//! given placement, else the lowest), and the dead zone that keeps a garment's own size.
+//! given placement, else the lowest), the dead zone that keeps a garment's own size, and
+//! [`place_mesh`]: the whole placement of a garment (trousers by their seat, a mirrored file
+//! mirrored back).
 
 use rayon::prelude::*;
 
+use neural_cloth_core::geometry::{TriMesh, Vec3};
+
 use super::align::{self, AlignSettings, Placement, Points};
-use super::probe::BodyProbe;
+use super::probe::{self, BodyProbe};
+use super::{FitOptions, MirrorMode, openings};
+
+/// Winding score (see [`BodyProbe::winding_score`]) below which the garment is mirrored.
+const MIRRORED_WINDING: f32 = -0.2;
 
 /// A refined candidate placement and how it fares.
 struct Candidate {
@@ -174,6 +182,73 @@ pub(super) fn refine_with_dead_zone(
         return align::refine(probe, points, &from, &unit);
     }
     refined
+}
+
+/// The placement of `given` (metres, centred at `centre_m`): the alignment, then, when its
+/// faces turn towards the body and the options allow, mirrored and refined again.
+pub(super) fn place_mesh(
+    probe: &BodyProbe,
+    given: &TriMesh,
+    weights: &[f32],
+    centre_m: Vec3,
+    options: &FitOptions,
+) -> Option<Placement> {
+    let settings = AlignSettings {
+        ease_m: options.ease_m,
+        scale_range: options.scale_range,
+        fixed_scale: options.scale,
+        fixed_offset_m: options.offset_m,
+        arm_openings: openings::has_arm_openings(given),
+    };
+    // Trousers are placed by the top half of their seat, above their legs and hips, which
+    // may be made for another stance (they are re-posed once placed, see [`repose`]).
+    let seat: Option<(Vec<Vec3>, Vec<f32>)> = openings::has_leg_openings(given)
+        .then(|| {
+            Some((
+                openings::crotch_height(given)?,
+                probe::bounds_of(&given.positions)?.1.y,
+            ))
+        })
+        .flatten()
+        .map(|(crotch, top)| {
+            let above = 0.5 * (crotch + top);
+            given
+                .positions
+                .iter()
+                .zip(weights)
+                .filter(|(p, _)| p.y >= above)
+                .map(|(p, w)| (*p, *w))
+                .unzip()
+        });
+    let points = match &seat {
+        Some((positions, seat_weights)) if seat_weights.iter().sum::<f32>() > 0.0 => Points {
+            positions,
+            weights: seat_weights,
+        },
+        _ => Points {
+            positions: &given.positions,
+            weights,
+        },
+    };
+    let mut start = Placement::identity(centre_m);
+    start.mirrored = options.mirror == MirrorMode::Flip;
+    let placement = align(probe, points, &start, &settings, options.scale_dead_zone)?;
+    let mut placed = given.clone();
+    placed.positions = placement.apply_all(&given.positions);
+    if options.mirror != MirrorMode::Auto || probe.winding_score(&placed) >= MIRRORED_WINDING {
+        return Some(placement);
+    }
+    let mirrored = Placement {
+        mirrored: !placement.mirrored,
+        ..placement
+    };
+    Some(refine_with_dead_zone(
+        probe,
+        points,
+        &mirrored,
+        &settings,
+        options.scale_dead_zone,
+    ))
 }
 
 #[cfg(test)]

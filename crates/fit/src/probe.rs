@@ -9,7 +9,7 @@ use neural_cloth_core::scene::{Avatar, Pose};
 use neural_cloth_physics::PosedBody;
 
 use super::FitError;
-use super::repose::Arms;
+use super::repose::Limbs;
 
 /// Height of one horizontal band of [`BodyProbe`]'s per-height extents, metres.
 const BIN_M: f32 = 0.01;
@@ -67,7 +67,7 @@ impl BodyProbe {
                 lo_m.y + (n as f32 + 0.5) * BIN_M,
             )
         });
-        let shoulders_m = Arms::of(avatar).map(|arms| {
+        let shoulders_m = Limbs::arms(avatar).map(|arms| {
             let joints = avatar.skeleton.joint_positions(pose);
             let [left, right] = arms.joints();
             0.5 * (joints[left].y + joints[right].y)

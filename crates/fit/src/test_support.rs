@@ -12,7 +12,7 @@ use super::repose;
 /// below the waist than at it), where a skirt cannot rest on the hips.
 pub fn flat_hipped_mannequin() -> Avatar {
     let m = mannequin().unwrap();
-    let arms = repose::Arms::of(&m).unwrap().moved_joints(&m.skeleton);
+    let arms = repose::Limbs::arms(&m).unwrap().moved_joints(&m.skeleton);
     let on_arm: Vec<bool> = (0..m.skin.len())
         .map(|v| {
             let w: f32 = m.skin.joints[v]
