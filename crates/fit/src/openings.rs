@@ -69,42 +69,36 @@ pub fn boundary_loops(mesh: &TriMesh) -> Vec<(f32, Vec3)> {
 /// either side of its middle, above its bottom (sleeves of a shirt or a jacket, the armholes
 /// of a dress). A skirt, trousers or a tube top has none.
 pub fn has_arm_openings(mesh: &TriMesh) -> bool {
-    let Some((lo, hi)) = bounds_of(&mesh.positions) else {
-        return false;
-    };
-    let extent = hi - lo;
-    let largest = extent.max();
-    let middle = 0.5 * (lo.x + hi.x);
-    let (mut left, mut right) = (false, false);
-    for (length, centre) in boundary_loops(mesh) {
-        if length < MIN_OPENING_SHARE * largest || centre.y < lo.y + ABOVE_BOTTOM_SHARE * extent.y {
-            continue;
-        }
-        let side = centre.x - middle;
-        left |= side < -SIDE_SHARE * extent.x;
-        right |= side > SIDE_SHARE * extent.x;
-    }
-    left && right
+    openings_either_side(mesh, false, SIDE_SHARE)
 }
 
 /// Whether `mesh` (Y up, X across the body) has an opening for each leg: a boundary loop on
 /// either side of its middle, at its bottom (the legs of trousers or shorts). A skirt, a
 /// dress or a shirt has one hem across the middle instead.
 pub fn has_leg_openings(mesh: &TriMesh) -> bool {
+    openings_either_side(mesh, true, LEG_SIDE_SHARE)
+}
+
+/// Whether `mesh` has an opening (a boundary loop of at least [`MIN_OPENING_SHARE`] of its
+/// largest extent) on either side of its middle, at least `side_share` of its width from it:
+/// among the loops within [`ABOVE_BOTTOM_SHARE`] of its height from its bottom when
+/// `at_bottom`, else among those above that.
+fn openings_either_side(mesh: &TriMesh, at_bottom: bool, side_share: f32) -> bool {
     let Some((lo, hi)) = bounds_of(&mesh.positions) else {
         return false;
     };
     let extent = hi - lo;
     let largest = extent.max();
     let middle = 0.5 * (lo.x + hi.x);
+    let bottom = lo.y + ABOVE_BOTTOM_SHARE * extent.y;
     let (mut left, mut right) = (false, false);
     for (length, centre) in boundary_loops(mesh) {
-        if length < MIN_OPENING_SHARE * largest || centre.y > lo.y + ABOVE_BOTTOM_SHARE * extent.y {
+        if length < MIN_OPENING_SHARE * largest || (centre.y <= bottom) != at_bottom {
             continue;
         }
         let side = centre.x - middle;
-        left |= side < -LEG_SIDE_SHARE * extent.x;
-        right |= side > LEG_SIDE_SHARE * extent.x;
+        left |= side < -side_share * extent.x;
+        right |= side > side_share * extent.x;
     }
     left && right
 }
