@@ -25,23 +25,25 @@ const ABOVE_BOTTOM_SHARE: f32 = 0.1;
 /// sleeves; a hem's centre lies on it).
 const LEG_SIDE_SHARE: f32 = 0.1;
 
+/// The root of `v` in the union-find forest `parent`, compressing the path on the way.
+fn root(parent: &mut [u32], v: u32) -> u32 {
+    let mut r = v;
+    while parent[r as usize] != r {
+        r = parent[r as usize];
+    }
+    let mut v = v;
+    while parent[v as usize] != r {
+        v = std::mem::replace(&mut parent[v as usize], r);
+    }
+    r
+}
+
 /// The boundary loops of `mesh` (connected sets of edges with a single face): per loop, its
 /// length and the length-weighted centre of its edges, in the mesh's units; longest first.
 pub fn boundary_loops(mesh: &TriMesh) -> Vec<(f32, Vec3)> {
     let edges = Topology::new(mesh).boundary_edges;
     // Union-find over the vertices, joined along the boundary edges.
     let mut parent: Vec<u32> = (0..mesh.vertex_count() as u32).collect();
-    fn root(parent: &mut [u32], v: u32) -> u32 {
-        let mut r = v;
-        while parent[r as usize] != r {
-            r = parent[r as usize];
-        }
-        let mut v = v;
-        while parent[v as usize] != r {
-            v = std::mem::replace(&mut parent[v as usize], r);
-        }
-        r
-    }
     for &[a, b] in &edges {
         let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
         parent[ra as usize] = rb;
@@ -115,17 +117,6 @@ const MIN_PIECE_FACES: usize = 3;
 pub fn crotch_height(mesh: &TriMesh) -> Option<f32> {
     let (lo, hi) = bounds_of(&mesh.positions)?;
     let mut parent: Vec<u32> = Vec::with_capacity(mesh.vertex_count());
-    fn root(parent: &mut [u32], v: u32) -> u32 {
-        let mut r = v;
-        while parent[r as usize] != r {
-            r = parent[r as usize];
-        }
-        let mut v = v;
-        while parent[v as usize] != r {
-            v = std::mem::replace(&mut parent[v as usize], r);
-        }
-        r
-    }
     let mut legs_below = false;
     for k in 0..CROTCH_SLICES {
         let y = lo.y + (k as f32 + 0.5) / CROTCH_SLICES as f32 * (hi.y - lo.y);
