@@ -135,7 +135,10 @@ pub fn table(report: &CompareReport) -> String {
     let _ = writeln!(
         s,
         "still frame: every joint slower than {} m/s for the last {} s; swing: mean distance \
-         from the quasi-static result (network at w = 0, simulator without dynamics); slip: \
+         from the quasi-static result (network at w = 0, simulator without dynamics); quasi-static \
+         distance: the network at w = 0 against the simulator without dynamics; motion \
+         distance: the network's motion (w against w = 0) against the simulator's (dynamic \
+         against quasi-static); slip: \
          the part of a difference that is a rigid motion of the whole garment (a frictionless \
          garment slides over the body), shape: what is left after it; state drift: the \
          network with its GRU state carried over the motion against the same network \

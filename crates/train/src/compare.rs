@@ -14,6 +14,10 @@
 //!   from its own quasi-static counterpart — for the network its `w = 0` output on the same
 //!   poses, for the simulator a simulation of the same motion with dynamics off (every step
 //!   a static solve started from the previous frame);
+//! - **quasi-static and motion distance** ([`static_motion_split`]): the network's `w = 0`
+//!   answer against the quasi-static simulation, and the network's motion (`w` minus `w = 0`)
+//!   against the simulator's (dynamic minus quasi-static): which of the two the distance
+//!   comes from, and whether the dynamic branch also corrects the static drape;
 //! - **hem radius** for garments whose hem reaches below the hips ([`reaches_below_hips`]):
 //!   the mean horizontal distance of the hem vertices (lowest 15 % of the template) from the
 //!   vertical axis through the root joint, on still and on moving frames;
@@ -45,6 +49,7 @@ mod one_step;
 mod record;
 mod rigid;
 mod rows;
+mod split;
 mod spread;
 
 pub use cache::{
@@ -61,6 +66,7 @@ pub use one_step::{OneStep, TURNING_DEG_PER_FRAME, one_step, turn_about_vertical
 pub use record::{TrainingCheck, append_checks, read_checks};
 pub use rigid::{RigidFit, RigidSplit, best_rigid_fit, rigid_split};
 pub use rows::{MeasureRow, MetricRow};
+pub use split::{StaticMotionSplit, static_motion_split};
 pub use spread::{
     ReferenceSpread, SENSITIVITY_JITTER_M, reference_sensitivity, reference_spread, spread_between,
 };

@@ -200,8 +200,9 @@ pub fn mean_where(values: &[f32], select: &dyn Fn(usize) -> bool) -> Option<f64>
     (!picked.is_empty()).then(|| picked.iter().sum::<f64>() / picked.len() as f64)
 }
 
-/// Dynamic amplitude of one side: mean distance of each frame from its quasi-static
-/// counterpart.
+/// Mean vertex distances between two sequences over all, still and moving frames: the
+/// dynamic amplitude of one side (each frame against its quasi-static counterpart), and each
+/// part of [`super::StaticMotionSplit`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct AmplitudeStats {
     /// Over all frames, mm.
@@ -282,6 +283,11 @@ pub struct MotionMeasures {
     /// recorded before it was measured, and when a frame is not finite).
     #[serde(default)]
     pub rigid: Option<super::RigidSplit>,
+    /// The distance split into the network's `w = 0` answer against the quasi-static solve
+    /// and its motion against the simulator's ([`super::static_motion_split`]; `None` in
+    /// checks recorded before it was measured).
+    #[serde(default)]
+    pub split: Option<super::StaticMotionSplit>,
     /// The GRU state carried over the motion against windowed replays ([`super::state_drift`];
     /// `None` in checks recorded before it was measured, at `w = 0` and without a dynamic
     /// branch).
@@ -377,6 +383,7 @@ pub fn measure_motion(
             seq.simulator,
             seq.simulator_static,
         )?,
+        split: Some(super::static_motion_split(seq, still)?),
         drift: None,
         one_step: None,
         spread: None,

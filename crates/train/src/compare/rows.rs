@@ -78,6 +78,14 @@ impl MotionMeasures {
         ] {
             rows.push(row(label, [Some(a.all_mm), a.still_mm, a.moving_mm], 1));
         }
+        if let Some(split) = &self.split {
+            for (label, d) in [
+                ("quasi-static distance, mm", split.quasi_static),
+                ("motion distance, mm", split.motion),
+            ] {
+                rows.push(row(label, [Some(d.all_mm), d.still_mm, d.moving_mm], 1));
+            }
+        }
         if let Some(rigid) = &self.rigid {
             for (label, value) in [
                 ("distance after rigid fit, mm", rigid.shape_distance_mm),
@@ -267,6 +275,7 @@ mod tests {
             },
             hem: None,
             rigid: None,
+            split: None,
             drift: None,
             one_step: None,
             spread: None,
@@ -282,6 +291,21 @@ mod tests {
         assert_eq!(rows[1].label, "distance p95, mm");
         assert_eq!(rows[3].values, [Some(1.0), None, Some(1.5)]);
         assert_eq!(rows[3].cells(), ["1.0", "—", "1.5"]);
+        let split = MotionMeasures {
+            split: Some(super::super::StaticMotionSplit {
+                quasi_static: swing,
+                motion: AmplitudeStats {
+                    all_mm: 3.0,
+                    still_mm: None,
+                    moving_mm: Some(3.5),
+                },
+            }),
+            ..m
+        };
+        let rows = split.rows();
+        assert_eq!(rows.len(), 6, "the split adds two rows after the swings");
+        assert_eq!(rows[4].label, "quasi-static distance, mm");
+        assert_eq!(rows[5].cells(), ["3.0", "—", "3.5"]);
         let drifting = MotionMeasures {
             drift: Some(super::super::StateDrift {
                 window_frames: 18,
