@@ -143,8 +143,9 @@ pub struct TrainConfig {
     /// about the rate whatever the gradient, so a constant rate leaves millimetres of noise
     /// in the drape. 0..=1, default 0 (constant rate: resuming the 30-minute t-shirt at a tenth
     /// of the rate for 400 steps left its idle distance at 2.4 mm; 0.25 over a whole
-    /// 3771-step t-shirt run brought its held-out spin 2.5 mm closer and changed nothing over
-    /// 1656 steps; docs/TRAINING.md rounds 2 and 28).
+    /// 3771-step t-shirt run brought its held-out spin 1.5-2.5 mm closer on two seeds and
+    /// changed nothing over 1656 steps; over a 1702-step skirt run it cost 1-9 mm on two seeds;
+    /// docs/TRAINING.md rounds 2, 28 and 29).
     /// Open-ended runs (the app without a limit) always keep the constant rate.
     pub lr_decay_fraction: f64,
     /// The learning-rate factor reached at the end of a bounded run, in (0, 1]; default 0.1.
