@@ -308,6 +308,22 @@ pub struct MotionMeasures {
     pub sensitivity: Option<super::ReferenceSpread>,
 }
 
+/// Mean distances of `candidate` to `reference` over all frames, the still frames
+/// (`still[k]`) and the moving ones.
+pub fn frame_means(
+    reference: &[Vec<Vec3>],
+    candidate: &[Vec<Vec3>],
+    still: &[bool],
+) -> Result<AmplitudeStats, TrainError> {
+    let is_still = |k: usize| still.get(k).copied().unwrap_or(false);
+    let is_moving = |k: usize| !is_still(k);
+    Ok(AmplitudeStats {
+        all_mm: compare_frames(reference, candidate)?.mean_mm,
+        still_mm: distance_stats(reference, candidate, &is_still)?.map(|s| s.mean_mm),
+        moving_mm: distance_stats(reference, candidate, &is_moving)?.map(|s| s.mean_mm),
+    })
+}
+
 /// Measures `seq` on `poses` (one frame each) with the still flags `still`.
 pub fn measure_motion(
     avatar: &Avatar,
@@ -331,13 +347,7 @@ pub fn measure_motion(
     }
     let is_still = |k: usize| still.get(k).copied().unwrap_or(false);
     let is_moving = |k: usize| !is_still(k);
-    let amplitude = |dynamic: &[Vec<Vec3>], quiet: &[Vec<Vec3>]| -> Result<_, TrainError> {
-        Ok(AmplitudeStats {
-            all_mm: compare_frames(quiet, dynamic)?.mean_mm,
-            still_mm: distance_stats(quiet, dynamic, &is_still)?.map(|s| s.mean_mm),
-            moving_mm: distance_stats(quiet, dynamic, &is_moving)?.map(|s| s.mean_mm),
-        })
-    };
+    let amplitude = |dynamic: &[Vec<Vec3>], quiet: &[Vec<Vec3>]| frame_means(quiet, dynamic, still);
     let hem = match reaches_below_hips(avatar, garment) {
         true => {
             let hem = hem_vertices(garment);

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 use neural_cloth_core::geometry::Vec3;
 
 use super::super::TrainError;
-use super::measure::{AmplitudeStats, Sequences, compare_frames, distance_stats};
+use super::measure::{AmplitudeStats, Sequences, compare_frames, frame_means};
 
 /// The distance split into the quasi-static answer and the motion, each over all, still
 /// and moving frames.
@@ -46,16 +46,7 @@ pub fn static_motion_split(
     seq: &Sequences<'_>,
     still: &[bool],
 ) -> Result<StaticMotionSplit, TrainError> {
-    let is_still = |k: usize| still.get(k).copied().unwrap_or(false);
-    let is_moving = |k: usize| !is_still(k);
-    let means = |a: &[Vec<Vec3>], b: &[Vec<Vec3>]| -> Result<AmplitudeStats, TrainError> {
-        Ok(AmplitudeStats {
-            all_mm: compare_frames(a, b)?.mean_mm,
-            still_mm: distance_stats(a, b, &is_still)?.map(|s| s.mean_mm),
-            moving_mm: distance_stats(a, b, &is_moving)?.map(|s| s.mean_mm),
-        })
-    };
-    let quasi_static = means(seq.simulator_static, seq.network_static)?;
+    let quasi_static = frame_means(seq.simulator_static, seq.network_static, still)?;
     // Shapes checked before the displacements are built (a mismatch is an error there).
     compare_frames(seq.network_static, seq.network)?;
     compare_frames(seq.simulator_static, seq.simulator)?;
@@ -63,7 +54,7 @@ pub fn static_motion_split(
     let simulator_motion = displacement(seq.simulator, seq.simulator_static);
     Ok(StaticMotionSplit {
         quasi_static,
-        motion: means(&simulator_motion, &network_motion)?,
+        motion: frame_means(&simulator_motion, &network_motion, still)?,
     })
 }
 
