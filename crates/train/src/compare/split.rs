@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 use neural_cloth_core::geometry::Vec3;
 
 use super::super::TrainError;
-use super::measure::{AmplitudeStats, Sequences, compare_frames, frame_means};
+use super::measure::{AmplitudeStats, Sequences, frame_means};
 
 /// The distance split into the quasi-static answer and the motion, each over all, still
 /// and moving frames.
@@ -30,8 +30,20 @@ pub struct StaticMotionSplit {
     pub motion: AmplitudeStats,
 }
 
-/// Per frame and vertex, `moving - resting` (the two of the same shape; checked by the
-/// caller through [`compare_frames`] first).
+/// An error unless `a` and `b` have the same frame count and, frame by frame, vertex count.
+fn same_shape(a: &[Vec<Vec3>], b: &[Vec<Vec3>]) -> Result<(), TrainError> {
+    let differs = a.len() != b.len() || a.iter().zip(b).any(|(x, y)| x.len() != y.len());
+    match differs {
+        true => Err(TrainError::Data(format!(
+            "cannot split a motion: sequences of {} and {} frames, or frames of other vertex counts",
+            a.len(),
+            b.len()
+        ))),
+        false => Ok(()),
+    }
+}
+
+/// Per frame and vertex, `moving - resting` (the two of the same shape: [`same_shape`]).
 fn displacement(moving: &[Vec<Vec3>], resting: &[Vec<Vec3>]) -> Vec<Vec<Vec3>> {
     moving
         .iter()
@@ -47,9 +59,8 @@ pub fn static_motion_split(
     still: &[bool],
 ) -> Result<StaticMotionSplit, TrainError> {
     let quasi_static = frame_means(seq.simulator_static, seq.network_static, still)?;
-    // Shapes checked before the displacements are built (a mismatch is an error there).
-    compare_frames(seq.network_static, seq.network)?;
-    compare_frames(seq.simulator_static, seq.simulator)?;
+    same_shape(seq.network_static, seq.network)?;
+    same_shape(seq.simulator_static, seq.simulator)?;
     let network_motion = displacement(seq.network, seq.network_static);
     let simulator_motion = displacement(seq.simulator, seq.simulator_static);
     Ok(StaticMotionSplit {
@@ -100,6 +111,18 @@ mod tests {
         assert!((split.quasi_static.all_mm - 4.0).abs() < 1e-4);
         assert!((split.motion.all_mm - 4.0).abs() < 1e-4);
         assert_eq!(split.quasi_static.moving_mm.map(|v| v.round()), Some(4.0));
+    }
+
+    #[test]
+    fn motions_of_other_vertex_counts_are_an_error() {
+        let (a, b) = (frames(&[0.0, 0.0]), vec![vec![Vec3::zeros(); 2]; 2]);
+        let seq = Sequences {
+            network: &b,
+            network_static: &a,
+            simulator: &a,
+            simulator_static: &a,
+        };
+        assert!(static_motion_split(&seq, &[false, false]).is_err());
     }
 
     #[test]
