@@ -260,6 +260,10 @@ pub struct TrainArgs {
     /// drops them).
     #[arg(long)]
     pub keep_posed_bodies: bool,
+    /// Step each batch as two halves on two threads, their gradients summed (default true;
+    /// false keeps the batch whole, the path before: docs/BENCHMARKS.md)
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub split_batch: Option<bool>,
     /// Keep zero initial biases (no data-dependent centring of the layers).
     #[arg(long)]
     pub no_centre_init: bool,

@@ -47,6 +47,7 @@ pub fn apply_flags(args: &TrainArgs, train: &mut TrainConfig) -> ClothNetConfig 
         args.warmup_steps => train.warmup_steps,
         args.precondition => train.precondition_stiffness,
         args.precondition_moving_only => train.precondition_moving_only,
+        args.split_batch => train.split_batch,
         args.precondition_dynamic_only => train.precondition_dynamic_only,
         args.weight_average => train.weight_average,
         args.propagate_history => train.history_propagation,

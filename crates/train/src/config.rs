@@ -173,6 +173,14 @@ pub struct TrainConfig {
     /// kept for `bench`). Default true.
     #[serde(default = "skip_still_dynamics_default")]
     pub skip_still_dynamics: bool,
+    /// Step each batch as two halves on two threads, each with its own copy of the network's
+    /// leaves, their gradients summed (each half's losses weighted by its share of the
+    /// batch, so the sum is the whole batch's gradient up to rounding). The step's serial
+    /// element-wise work then runs on both cores. The augmented windows take the dynamic code
+    /// of a window of their own half. The warm start's fit keeps the batch whole. False: one
+    /// batch (the path before, kept for `bench`). Default true.
+    #[serde(default = "split_batch_default")]
+    pub split_batch: bool,
     /// A validation pass with at least this percentage of dead units in one revivable layer
     /// (decoder, static hidden layers) triggers the stall remedy (revive the dead units); 1..=100, default 75.
     pub dead_limit_pct: f64,
@@ -355,6 +363,7 @@ impl Default for TrainConfig {
             fused_adam: true,
             keep_posed_bodies: false,
             skip_still_dynamics: true,
+            split_batch: true,
             fit_check: true,
             loss_frames: 1,
             warmup_steps: 0,
@@ -379,6 +388,11 @@ impl Default for TrainConfig {
 
 /// [`TrainConfig::skip_still_dynamics`] of configurations saved without it.
 fn skip_still_dynamics_default() -> bool {
+    true
+}
+
+/// [`TrainConfig::split_batch`] of configurations saved without it.
+fn split_batch_default() -> bool {
     true
 }
 

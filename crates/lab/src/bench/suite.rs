@@ -334,6 +334,7 @@ fn training_cases(k: usize, batch: usize, variants: bool) -> Vec<TrainCase> {
     let default = TrainCase::default_at(batch);
     let burn_adam = TrainCase {
         fused_adam: false,
+        split_batch: false,
         ..default
     };
     // Today's 1 s window (issue 11, round 12), beside the issue's 0.5 s reference.
@@ -344,10 +345,16 @@ fn training_cases(k: usize, batch: usize, variants: bool) -> Vec<TrainCase> {
     // The same with the still windows through the recurrent encoder (the path before).
     let still_through = TrainCase {
         skip_still: false,
+        split_batch: false,
+        ..default_window
+    };
+    // The same with the batch whole, on one thread (the path before).
+    let whole = TrainCase {
+        split_batch: false,
         ..default_window
     };
     if !variants || k > 0 {
-        return vec![burn_adam, default, default_window, still_through];
+        return vec![burn_adam, default, default_window, whole, still_through];
     }
     let all = default.effects;
     let mut cases = vec![
@@ -355,6 +362,7 @@ fn training_cases(k: usize, batch: usize, variants: bool) -> Vec<TrainCase> {
         burn_adam,
         default,
         default_window,
+        whole,
         still_through,
     ];
     // Friction acts at contacts between frames: off with collision or dynamics.

@@ -53,6 +53,9 @@ pub struct TrainCase {
     /// Still windows skip the dynamic encoder ([`TrainConfig::skip_still_dynamics`], the
     /// default) or go through it (the path before).
     pub skip_still: bool,
+    /// The batch in two halves on two threads ([`TrainConfig::split_batch`], the default) or
+    /// whole (the path before).
+    pub split_batch: bool,
 }
 
 impl TrainCase {
@@ -66,6 +69,7 @@ impl TrainCase {
             fused_adam: true,
             window_secs: ISSUE_WINDOW_SECS,
             skip_still: true,
+            split_batch: true,
         }
     }
 
@@ -74,6 +78,7 @@ impl TrainCase {
         Self {
             fused_physics: false,
             fused_adam: false,
+            split_batch: false,
             ..Self::default_at(batch)
         }
     }
@@ -81,6 +86,7 @@ impl TrainCase {
     /// Name of the path in logs and tables.
     pub fn path_label(&self) -> &'static str {
         match (self.fused_physics, self.fused_adam, self.skip_still) {
+            (true, true, true) if self.split_batch => "fused physics, fused Adam, batch in halves",
             (true, true, true) => "fused physics, fused Adam",
             (true, true, false) => "fused physics, fused Adam, still windows through the GRU",
             (true, false, _) => "fused physics, burn Adam",
@@ -244,6 +250,7 @@ impl Prepared {
             fused_physics: case.fused_physics,
             fused_adam: case.fused_adam,
             skip_still_dynamics: case.skip_still,
+            split_batch: case.split_batch,
             predrape_secs: predrape_secs.unwrap_or(defaults.predrape_secs),
             ..defaults
         };

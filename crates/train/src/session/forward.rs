@@ -3,10 +3,24 @@
 //! targets of the predicted frames.
 
 use burn::tensor::{Int, Tensor, TensorData};
+use neural_cloth_model::ClothNet;
+use rand::Rng;
 use rand::seq::SliceRandom;
 
 use super::NeuralSession;
 use crate::data::Batch;
+
+/// The samples whose dynamic codes the last `augment` of `b` samples take (the paper's motion
+/// augmentation): the first `augment` entries of a shuffle of `0..b` drawn from `rng`.
+pub(super) fn augmentation_picks(rng: &mut impl Rng, b: usize, augment: usize) -> Vec<i64> {
+    if augment == 0 {
+        return Vec::new();
+    }
+    let mut perm: Vec<i64> = (0..b as i64).collect();
+    perm.shuffle(rng);
+    perm.truncate(augment);
+    perm
+}
 
 impl NeuralSession {
     /// Pinning targets of the predicted frames `first..K` of `batch`, stacked frame by frame
@@ -33,26 +47,19 @@ impl NeuralSession {
         Some(crate::losses::skin_blended(template, blended).reshape([frames * b, v, 3]))
     }
 
-    /// `(z_s + z_d, z_d)`, except for the last `augment` samples: their own static code
-    /// (detached) plus a shuffled sample's dynamic code (detached), the paper's motion
-    /// augmentation. The second code feeds the dynamic basis, when the network has one.
-    fn mix_codes(
-        &mut self,
-        z_s: Tensor<3>,
-        z_d: Tensor<3>,
-        augment: usize,
-    ) -> (Tensor<3>, Tensor<3>) {
+    /// `(z_s + z_d, z_d)`, except for the last `picks.len()` samples: their own static code
+    /// (detached) plus the dynamic code (detached) of the sample `picks` names, the paper's
+    /// motion augmentation ([`augmentation_picks`]). The second code feeds the dynamic basis,
+    /// when the network has one.
+    fn mix_codes(&self, z_s: Tensor<3>, z_d: Tensor<3>, picks: &[i64]) -> (Tensor<3>, Tensor<3>) {
+        let augment = picks.len();
         if augment == 0 {
             return (z_s + z_d.clone(), z_d);
         }
         let b = z_s.dims()[0];
         let kept = b - augment;
-        let mut perm: Vec<i64> = (0..b as i64).collect();
-        perm.shuffle(&mut self.rng);
-        let picks = Tensor::<1, Int>::from_data(
-            TensorData::new(perm[..augment].to_vec(), [augment]),
-            &self.device,
-        );
+        let picks =
+            Tensor::<1, Int>::from_data(TensorData::new(picks.to_vec(), [augment]), &self.device);
         let shuffled_d = z_d.clone().select(0, picks).detach();
         let mixed_d = Tensor::cat(vec![z_d.narrow(0, 0, kept), shuffled_d], 0);
         let z_s = Tensor::cat(
@@ -70,23 +77,28 @@ impl NeuralSession {
     /// sample's dynamic code and detached encoders.
     /// Also returns the batch's blended skinning matrices as a tensor (`[B, K, V, 12]`), for
     /// the pinning targets.
+    /// `model` is the session's network or a copy of it with leaves of its own
+    /// ([`super::split::fresh_leaves`]); `picks` are the augmented samples' picks
+    /// ([`augmentation_picks`], empty when none are augmented).
     pub(super) fn predict(
-        &mut self,
+        &self,
+        model: &ClothNet,
         batch: &Batch,
         still: usize,
-        augment: usize,
+        picks: &[i64],
     ) -> (Tensor<4>, Tensor<4>) {
+        let augment = picks.len();
         let (b, t, k) = (batch.size, batch.frames, batch.predicted);
         let j = self.train.input_joints;
         let statics = self.tensor4(batch.static_desc.clone(), [b, t, j, 9]);
-        let dynamics = (self.model.kind() != neural_cloth_model::EncoderKind::StaticOnly)
+        let dynamics = (model.kind() != neural_cloth_model::EncoderKind::StaticOnly)
             .then(|| self.tensor4(batch.dynamic_desc.clone(), [b, t, j, 12]));
         // The frames before the window only set the GRU's starting state (no gradient).
         let burn = t.saturating_sub(self.window_frames());
         let (statics, dynamics, state) = if burn > 0 {
             let state = dynamics
                 .as_ref()
-                .and_then(|d| self.model.burn_in_state(d.clone().narrow(1, 0, burn)));
+                .and_then(|d| model.burn_in_state(d.clone().narrow(1, 0, burn)));
             (
                 statics.narrow(1, burn, t - burn),
                 dynamics.map(|d| d.narrow(1, burn, t - burn)),
@@ -102,11 +114,10 @@ impl NeuralSession {
             0
         };
         let split_static = self.config.static_from_still && still > 0 && still < b;
-        let offsets = if (augment == 0 && !split_static) || !self.model.has_dynamic_branch() {
-            self.model
-                .forward_last(statics, dynamics, 1.0, k, state, quiet)
+        let offsets = if (augment == 0 && !split_static) || !model.has_dynamic_branch() {
+            model.forward_last(statics, dynamics, 1.0, k, state, quiet)
         } else {
-            let (z_s, z_d) = self.model.encode_last(statics, dynamics, k, state, quiet);
+            let (z_s, z_d) = model.encode_last(statics, dynamics, k, state, quiet);
             match z_d {
                 Some(z_d) => {
                     let z_s = if split_static {
@@ -114,10 +125,10 @@ impl NeuralSession {
                     } else {
                         z_s
                     };
-                    let (z, z_d) = self.mix_codes(z_s, z_d, augment);
-                    self.model.decode_with(z, Some(z_d))
+                    let (z, z_d) = self.mix_codes(z_s, z_d, picks);
+                    model.decode_with(z, Some(z_d))
                 }
-                None => self.model.decode(z_s),
+                None => model.decode(z_s),
             }
         };
         let v = self.garment.vertex_count();

@@ -30,8 +30,9 @@ use neural_cloth_physics::{
 
 mod fit;
 mod forward;
+mod split;
 mod step_losses;
-use step_losses::{Descent, StepLosses};
+use step_losses::{Descent, StepFilters, StepLosses};
 
 use super::TrainError;
 use super::adam::TrainOptimiser;
@@ -221,9 +222,9 @@ impl NeuralSession {
     }
 
     /// With the dynamics effect: the inertia of the first `kept` samples of every loss frame
-    /// of `x` (`[B, K, V, 3]`) from the network's own two previous frames, plus the friction
+    /// of `x` (`[B, K, V, 3]`) from the network's own two previous frames, the friction
     /// dissipation of every loss frame `x_t` (stacked, [`stack_frames`]) with the friction
-    /// effect, in that order; and the friction contacts, for the step's metrics.
+    /// effect, and the friction contacts, for the step's metrics.
     fn dynamic_losses(
         &self,
         x: &Tensor<4>,
@@ -231,9 +232,9 @@ impl NeuralSession {
         batch: &Batch,
         contacts: Option<&Contacts>,
         kept: usize,
-    ) -> Result<(Vec<Tensor<1>>, Option<FrictionContacts>), TrainError> {
+    ) -> Result<DynamicLosses, TrainError> {
         if !self.terms.effects().dynamics {
-            return Ok((Vec::new(), None));
+            return Ok(DynamicLosses::default());
         }
         let (b, predicted) = (batch.size, batch.predicted);
         let (xt, xt1, xt2) = (
@@ -266,7 +267,11 @@ impl NeuralSession {
             let xt1 = stack_frames(x, 1, predicted - 1, b);
             self.terms.friction(x_t, &xt1, fc)
         });
-        Ok((inertia.into_iter().chain(dissipation).collect(), friction))
+        Ok(DynamicLosses {
+            inertia,
+            dissipation,
+            friction,
+        })
     }
 
     /// Metrics of a training step on its first few windows only ([`STEP_METRIC_WINDOWS`]):
@@ -380,6 +385,84 @@ impl NeuralSession {
 /// Whether the mirrored copies of the training motions are in the batches at step `steps`
 /// of a run `progress` through its budget: both [`TrainConfig::mirror_from_step`] and
 /// [`TrainConfig::mirror_from_fraction`] reached (an open-ended run reaches any fraction).
+/// A part of a step's batch ([`split::parts`]) with its windows' data and augmentation picks.
+struct PartBatch {
+    part: split::Part,
+    batch: Batch,
+    picks: Vec<i64>,
+}
+
+/// What one part of a step computed ([`NeuralSession::descend`]).
+struct PartOutcome {
+    /// Gradients of the part's weighted losses.
+    grads: GradientsParams,
+    /// The part's weighted physics loss.
+    loss: f64,
+    /// The part's posed frames `[b, K, V, 3]` (detached copy when filtered).
+    x: Tensor<4>,
+    /// Contacts of its loss frames.
+    contacts: Option<Contacts>,
+    /// Friction contacts of its loss frames.
+    friction: Option<FrictionContacts>,
+    /// Windows in the part.
+    size: usize,
+}
+
+impl NeuralSession {
+    /// The forward and backward passes of one part of a step through `model` (the session's
+    /// network, or for a batch in parts a copy with leaves of its own).
+    fn descend(
+        &self,
+        model: &ClothNet,
+        part: &PartBatch,
+        filters: &StepFilters,
+    ) -> Result<PartOutcome, TrainError> {
+        let PartBatch { part, batch, picks } = part;
+        let (x_net, blended) = self.predict(model, batch, part.still, picks);
+        // With the gradient filter, the losses are taken on a detached copy of the posed
+        // frames; their gradient is filtered and handed to the network through a surrogate.
+        let filtered = filters.filter.is_some();
+        let x = match filtered {
+            true => x_net.clone().detach().require_grad(),
+            false => x_net.clone(),
+        };
+        let kept = part.kept();
+        let StepLosses {
+            total,
+            plain,
+            contacts,
+            friction,
+            mut loss,
+        } = self.step_losses(&x_net, &x, filtered, batch, &blended, kept, part.weights)?;
+        let losses = Descent {
+            total,
+            plain,
+            still: part.still,
+            moving_end: kept,
+        };
+        let grads = self.step_gradients(filters, &x_net, &x, losses, batch, &mut loss)?;
+        Ok(PartOutcome {
+            grads: GradientsParams::from_grads(grads, model),
+            loss,
+            x,
+            contacts,
+            friction,
+            size: part.size(),
+        })
+    }
+}
+
+/// What [`NeuralSession::dynamic_losses`] returns (nothing without the dynamics effect).
+#[derive(Default)]
+struct DynamicLosses {
+    /// Inertia (batch mean over the kept samples).
+    inertia: Option<Tensor<1>>,
+    /// Friction dissipation (batch mean over every sample).
+    dissipation: Option<Tensor<1>>,
+    /// Friction contacts of the loss frames.
+    friction: Option<FrictionContacts>,
+}
+
 fn mirrored_joined(config: &TrainConfig, steps: u64, progress: Option<f64>) -> bool {
     steps >= config.mirror_from_step && progress.is_none_or(|p| p >= config.mirror_from_fraction)
 }
@@ -417,35 +500,48 @@ impl Session for NeuralSession {
         let still = self.config.still_windows(b, dynamics);
         let predicted = self.config.loss_frames + 2;
         let frames = self.step_batch_frames();
-        let batch =
-            self.train
-                .batch_with_still(&windows, still, frames, predicted, &self.garment.skin);
-        let (x_net, blended) = self.predict(&batch, still, augment);
-        // With the gradient filter, the losses are taken on a detached copy of the posed
-        // frames; their gradient is filtered and handed to the network through a surrogate.
-        let filter = self
-            .filter
-            .next(&self.config, &self.terms, self.dt_secs())?;
-        let x = match filter {
-            Some(_) => x_net.clone().detach().require_grad(),
-            None => x_net.clone(),
+        // The fit to reference frames (warm start, diagnostic) keeps the batch whole.
+        let split = self.config.split_batch && !self.fitting();
+        let mut parts = Vec::new();
+        for part in split::parts(b, still, augment, split) {
+            let batch = self.train.batch_with_still(
+                &windows[part.windows.clone()],
+                part.still,
+                frames,
+                predicted,
+                &self.garment.skin,
+            );
+            let picks = match self.model.has_dynamic_branch() {
+                true => forward::augmentation_picks(&mut self.rng, part.size(), part.augment),
+                false => Vec::new(),
+            };
+            parts.push(PartBatch { part, batch, picks });
+        }
+        let filters = self.step_filters()?;
+        let outcomes = match parts.as_slice() {
+            [whole] => vec![self.descend(&self.model, whole, &filters)?],
+            [first, second] => {
+                let (a, b) = (
+                    split::fresh_leaves(&self.model),
+                    split::fresh_leaves(&self.model),
+                );
+                let (a, b) = rayon::join(
+                    || self.descend(&a, first, &filters),
+                    || self.descend(&b, second, &filters),
+                );
+                vec![a?, b?]
+            }
+            _ => return Err(TrainError::Data("a step has one or two parts".into())),
         };
-        let StepLosses {
-            total,
-            plain,
-            contacts,
-            friction,
-            mut loss,
-        } = self.step_losses(&x_net, &x, filter.is_some(), &batch, &blended, b - augment)?;
-        let losses = Descent {
-            total,
-            plain,
-            still,
-            moving_end: b - augment,
+        let loss = outcomes.iter().map(|o| o.loss).sum::<f64>();
+        let mut outcomes = outcomes.into_iter();
+        let Some(head) = outcomes.next() else {
+            return Err(TrainError::Data("a step has one or two parts".into()));
         };
-        let grads =
-            self.step_gradients(filter.as_deref(), &x_net, &x, losses, &batch, &mut loss)?;
-        let grads = GradientsParams::from_grads(grads, &self.model);
+        let grads = std::iter::once(head.grads)
+            .chain(outcomes.map(|o| o.grads))
+            .collect();
+        let grads = split::sum_gradients(&self.model, grads);
         self.optim.step(
             self.learning_rate * self.schedule_factor,
             &mut self.model,
@@ -453,7 +549,9 @@ impl Session for NeuralSession {
         )?;
         self.filter.count_step();
         self.end_warm_start();
-        let metrics = self.step_metrics(&x, contacts, friction, b, predicted)?;
+        // The metrics of the first windows, all in the first part.
+        let metrics =
+            self.step_metrics(&head.x, head.contacts, head.friction, head.size, predicted)?;
         if !self.config.keep_posed_bodies {
             self.train.forget_bodies();
         }
@@ -471,7 +569,7 @@ impl Session for NeuralSession {
             return Err(TrainError::NoValidationFrames);
         }
         let batch = data.batch(&windows, self.batch_frames(), 3, &self.garment.skin);
-        let (x, blended) = self.predict(&batch, 0, 0);
+        let (x, blended) = self.predict(&self.model, &batch, 0, &[]);
         let x = x.detach();
         let (x_t, x_t1, x_t2) = (frame(&x, 2), frame(&x, 1), frame(&x, 0));
         let data = if self.validation.is_empty() {

@@ -2,6 +2,8 @@
 //! from the network's own history, on the posed frames (or on detached copies of them when
 //! the gradient filter acts on them).
 
+use std::sync::Arc;
+
 use burn::tensor::Gradients;
 use burn::tensor::Tensor;
 use neural_cloth_physics::{Contacts, FrictionContacts, GradientFilter};
@@ -30,6 +32,9 @@ impl NeuralSession {
     /// samples). With `precondition_dynamic_only` (and dynamic terms to filter), the static
     /// losses are taken on a copy of their own, returned as `plain`, whose gradient is not
     /// filtered; `total` is then the dynamic terms only.
+    /// `weights` scale the terms of a part of a batch so that the parts' sums are the whole
+    /// batch's means ([`PartWeights::WHOLE`] for a whole batch).
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn step_losses(
         &self,
         x_net: &Tensor<4>,
@@ -38,6 +43,7 @@ impl NeuralSession {
         batch: &Batch,
         blended: &Tensor<4>,
         kept: usize,
+        weights: PartWeights,
     ) -> Result<StepLosses, TrainError> {
         let (b, predicted) = (batch.size, batch.predicted);
         let x_static =
@@ -52,10 +58,14 @@ impl NeuralSession {
             2,
             x_static_t.as_ref().unwrap_or(&x_t),
         )?;
-        let static_total = losses
-            .total()
-            .unwrap_or_else(|| Tensor::zeros([1], &self.device));
-        let (dynamic, friction) = self.dynamic_losses(x, &x_t, batch, contacts.as_ref(), kept)?;
+        let static_total = weights.scale(
+            losses
+                .total()
+                .unwrap_or_else(|| Tensor::zeros([1], &self.device)),
+            weights.samples,
+        );
+        let dynamic = self.dynamic_losses(x, &x_t, batch, contacts.as_ref(), kept)?;
+        let friction = dynamic.friction;
         let (mut total, plain) = match x_static {
             Some(x_static) => (
                 Tensor::zeros([1], &self.device),
@@ -63,8 +73,11 @@ impl NeuralSession {
             ),
             None => (static_total, None),
         };
-        for term in dynamic {
-            total = total + term;
+        if let Some(inertia) = dynamic.inertia {
+            total = total + weights.scale(inertia, weights.kept);
+        }
+        if let Some(dissipation) = dynamic.dissipation {
+            total = total + weights.scale(dissipation, weights.samples);
         }
         let loss = total.clone().into_scalar::<f64>()
             + plain
@@ -80,15 +93,78 @@ impl NeuralSession {
     }
 }
 
+/// The gradient filters of one step ([`crate::filter::FilterCache`]), taken before the step's
+/// parts run so that they can share them.
+#[derive(Clone, Default)]
+pub(super) struct StepFilters {
+    /// The filter of the static (and dynamic) terms' gradient, when one acts this step.
+    pub filter: Option<Arc<GradientFilter>>,
+    /// The history propagation filter ([`crate::TrainConfig::history_propagation`]).
+    pub propagation: Option<Arc<GradientFilter>>,
+    /// The history adjoint filter ([`crate::TrainConfig::history_adjoint`]).
+    pub adjoint: Option<Arc<GradientFilter>>,
+}
+
 impl NeuralSession {
-    /// The gradients of a step: the physics loss (through the gradient `filter` when one acts;
-    /// rows of `x` are sample-major, still windows first), or when fitting to reference
-    /// frames ([`NeuralSession::fitting`]) the fit of the moving windows plus the physics
-    /// loss: at [`crate::TrainConfig::fit_physics_weight`] for the diagnostic fit, in which
-    /// case `loss` becomes the fit's, at 1 for the warm start.
+    /// The step's filters: `None` filters where the configuration has none.
+    pub(super) fn step_filters(&mut self) -> Result<StepFilters, TrainError> {
+        let dt = self.dt_secs();
+        let filter = self.filter.next(&self.config, &self.terms, dt)?;
+        if filter.is_none() {
+            return Ok(StepFilters::default());
+        }
+        Ok(StepFilters {
+            filter,
+            propagation: self.filter.propagation(&self.config, &self.terms, dt)?,
+            adjoint: self.filter.adjoint(&self.config, &self.terms, dt)?,
+        })
+    }
+
+    /// The objective whose gradient a step descends for its physics: the summed losses, or
+    /// through the gradient filter when one acts (rows of `x` are sample-major, still windows
+    /// first) their filtered surrogate.
+    pub(super) fn physics_objective(
+        &self,
+        filters: &StepFilters,
+        x_net: &Tensor<4>,
+        x: &Tensor<4>,
+        losses: Descent,
+        batch: &Batch,
+    ) -> Result<Tensor<1>, TrainError> {
+        let Some(filter) = filters.filter.as_deref() else {
+            return Ok(losses.total);
+        };
+        let plain_rows = if self.config.precondition_moving_only {
+            losses.still * batch.predicted
+        } else {
+            0
+        };
+        // The history terms act on the moving windows with dynamics: after the still ones,
+        // before the augmented (quasi-static) ones.
+        let dynamics = self.terms.effects().dynamics;
+        let history = HistoryTerms {
+            propagation: filters.propagation.as_deref().filter(|_| dynamics),
+            adjoint: filters.adjoint.as_deref().filter(|_| dynamics),
+            samples: losses.still..losses.moving_end,
+        };
+        filtered_surrogate(
+            filter,
+            x_net,
+            x,
+            losses.total,
+            plain_rows,
+            losses.plain,
+            history,
+        )
+    }
+
+    /// The gradients of a step: the physics objective ([`Self::physics_objective`]), or when
+    /// fitting to reference frames ([`NeuralSession::fitting`]) the fit of the moving windows
+    /// plus the physics loss: at [`crate::TrainConfig::fit_physics_weight`] for the
+    /// diagnostic fit, in which case `loss` becomes the fit's, at 1 for the warm start.
     pub(super) fn step_gradients(
-        &mut self,
-        filter: Option<&GradientFilter>,
+        &self,
+        filters: &StepFilters,
         x_net: &Tensor<4>,
         x: &Tensor<4>,
         losses: Descent,
@@ -102,36 +178,9 @@ impl NeuralSession {
             false => 1.0,
         };
         let fit_samples = losses.still..losses.moving_end;
-        let physics = match filter {
-            _ if weight == 0.0 => None,
-            None => Some(losses.total),
-            Some(filter) => {
-                let plain_rows = if self.config.precondition_moving_only {
-                    losses.still * batch.predicted
-                } else {
-                    0
-                };
-                // The history terms act on the moving windows with dynamics: after the
-                // still ones, before the augmented (quasi-static) ones.
-                let dt = self.dt_secs();
-                let propagation = self.filter.propagation(&self.config, &self.terms, dt)?;
-                let adjoint = self.filter.adjoint(&self.config, &self.terms, dt)?;
-                let dynamics = self.terms.effects().dynamics;
-                let history = HistoryTerms {
-                    propagation: propagation.as_deref().filter(|_| dynamics),
-                    adjoint: adjoint.as_deref().filter(|_| dynamics),
-                    samples: losses.still..losses.moving_end,
-                };
-                Some(filtered_surrogate(
-                    filter,
-                    x_net,
-                    x,
-                    losses.total,
-                    plain_rows,
-                    losses.plain,
-                    history,
-                )?)
-            }
+        let physics = match weight == 0.0 {
+            true => None,
+            false => Some(self.physics_objective(filters, x_net, x, losses, batch)?),
         };
         if !fitting {
             return physics
@@ -147,6 +196,34 @@ impl NeuralSession {
             Some(p) => (fit + p.mul_scalar(weight)).backward(),
             None => fit.backward(),
         })
+    }
+}
+
+/// The weights of a part of a batch's windows in the batch's means: its share of the samples
+/// (static terms, pinning, friction) and of the kept samples (inertia, which the augmented
+/// windows do not take).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct PartWeights {
+    /// Samples of the part over the batch's samples.
+    pub samples: f64,
+    /// Kept samples of the part over the batch's kept samples.
+    pub kept: f64,
+}
+
+impl PartWeights {
+    /// A whole batch.
+    pub const WHOLE: Self = Self {
+        samples: 1.0,
+        kept: 1.0,
+    };
+
+    /// `loss · weight`, `loss` itself at weight 1 (the whole batch's path is unchanged).
+    fn scale(self, loss: Tensor<1>, weight: f64) -> Tensor<1> {
+        if weight == 1.0 {
+            loss
+        } else {
+            loss.mul_scalar(weight)
+        }
     }
 }
 

@@ -100,12 +100,12 @@ fn the_momentum_boost_changes_the_inertia_loss_until_its_schedule_ends() {
     let batch = s
         .train
         .batch_with_still(&windows, 0, s.batch_frames(), 3, &s.garment.skin);
-    let (x, _) = s.predict(&batch, 0, 0);
+    let (x, _) = s.predict(&s.model, &batch, 0, &[]);
     let x = x.detach();
     let x_t = super::stack_frames(&x, 2, 3, 4);
     let inertia = |s: &super::NeuralSession| {
-        let (terms, _) = s.dynamic_losses(&x, &x_t, &batch, None, 4).unwrap();
-        terms[0].clone().into_scalar::<f64>()
+        let terms = s.dynamic_losses(&x, &x_t, &batch, None, 4).unwrap();
+        terms.inertia.unwrap().into_scalar::<f64>()
     };
     let first = inertia(&s);
     s.filter.restore(1);
@@ -133,8 +133,8 @@ fn two_runs_prepared_with_one_seed_in_one_process_start_from_the_same_weights() 
         .train
         .batch_with_still(&windows, 0, a.batch_frames(), 3, &a.garment.skin);
     // The first session's forward pass draws nothing that the second one's weights see.
-    let (xa, _) = a.predict(&batch, 0, 0);
-    let (xb, _) = b.predict(&batch, 0, 0);
+    let (xa, _) = a.predict(&a.model, &batch, 0, &[]);
+    let (xb, _) = b.predict(&b.model, &batch, 0, &[]);
     assert_eq!(xa.into_data(), xb.into_data());
 }
 
@@ -249,4 +249,93 @@ fn still_windows_that_skip_the_dynamic_encoder_train_as_if_they_went_through_it(
     for (a, b) in wa.iter().zip(&wb) {
         assert!((a - b).abs() <= 1e-5, "{a} against {b}");
     }
+}
+
+/// Every float parameter's gradient in `grads`, flattened, in the order of `model`'s fields.
+fn flat_gradients(
+    model: &neural_cloth_model::ClothNet,
+    grads: &burn::optim::GradientsParams,
+) -> Vec<Vec<f32>> {
+    use burn::module::{Module, ModuleVisitor, Param};
+    struct Collect<'a>(&'a burn::optim::GradientsParams, Vec<Vec<f32>>);
+    impl ModuleVisitor for Collect<'_> {
+        fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+            if let Some(g) = self.0.get::<D>(param.id) {
+                self.1.push(g.into_data().try_to_vec::<f32>().unwrap());
+            }
+        }
+    }
+    let mut collect = Collect(grads, Vec::new());
+    model.visit(&mut collect);
+    collect.1
+}
+
+/// The gradient of a batch stepped in two halves on two threads is the whole batch's: the
+/// parts' losses are weighted by their shares of the samples and of the windows with inertia.
+#[test]
+fn a_batch_in_two_halves_has_the_whole_batchs_loss_and_gradient() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = session_with(TrainConfig::default(), dir.path());
+    assert!(s.filter.steps_taken() == 0 && s.config.precondition_stiffness > 0.0);
+    let (b, still, augment, predicted) = (8, 2, 2, 4);
+    let windows = s.train.sample_windows(b, true, &mut s.rng);
+    let frames = s.batch_frames();
+    let part_batch = |s: &super::NeuralSession, part: super::split::Part, picks: Vec<i64>| {
+        let batch = s.train.batch_with_still(
+            &windows[part.windows.clone()],
+            part.still,
+            frames,
+            predicted,
+            &s.garment.skin,
+        );
+        super::PartBatch { part, batch, picks }
+    };
+    let filters = s.step_filters().unwrap();
+    assert!(filters.filter.is_some(), "the default filter acts");
+    // The augmented windows take the codes of windows 5 and 6, in the second half either way.
+    let whole = super::split::parts(b, still, augment, false).remove(0);
+    let whole = part_batch(&s, whole, vec![5, 6]);
+    let whole = s.descend(&s.model, &whole, &filters).unwrap();
+    let halves = super::split::parts(b, still, augment, true);
+    assert_eq!(halves.len(), 2);
+    let picks = [vec![], vec![1, 2]];
+    let halves: Vec<_> = halves
+        .into_iter()
+        .zip(picks)
+        .map(|(part, picks)| part_batch(&s, part, picks))
+        .collect();
+    let (m0, m1) = (
+        super::split::fresh_leaves(&s.model),
+        super::split::fresh_leaves(&s.model),
+    );
+    let (h0, h1) = rayon::join(
+        || s.descend(&m0, &halves[0], &filters),
+        || s.descend(&m1, &halves[1], &filters),
+    );
+    let (h0, h1) = (h0.unwrap(), h1.unwrap());
+    let loss = h0.loss + h1.loss;
+    assert!(
+        (loss - whole.loss).abs() <= 1e-5 * whole.loss.abs(),
+        "{loss} against {}",
+        whole.loss
+    );
+    let split = super::split::sum_gradients(&s.model, vec![h0.grads, h1.grads]);
+    let (a, c) = (
+        flat_gradients(&s.model, &whole.grads),
+        flat_gradients(&s.model, &split),
+    );
+    assert_eq!(a.len(), c.len());
+    assert!(a.len() > 10, "{} parameters with gradients", a.len());
+    let mut largest = 0.0f32;
+    for (a, c) in a.iter().zip(&c) {
+        assert_eq!(a.len(), c.len());
+        let scale = a.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let diff = a
+            .iter()
+            .zip(c)
+            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+        largest = largest.max(scale);
+        assert!(diff <= 1e-4 * scale + 1e-9, "max diff {diff} of {scale}");
+    }
+    assert!(largest > 0.0);
 }
