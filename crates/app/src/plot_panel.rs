@@ -205,10 +205,13 @@ fn metric_plot_ui(
         if let Some(color) = style.validation
             && !curve.validation.is_empty()
         {
+            // Solid, not dashed: egui_plot cuts a dashed line into dashes before clipping it to
+            // the plot, so a validation value far outside a flat curve's narrow y range (a
+            // tiny run whose logged inertia is all zero) became millions of dashes and
+            // gigabytes of shapes (the app's tests were killed for memory).
             plot.line(
                 Line::new("validation", curve.validation.clone())
                     .color(color.gamma_multiply(0.6))
-                    .style(LineStyle::dashed_dense())
                     .width(1.0),
             );
             plot.points(

@@ -409,6 +409,26 @@ struct PartOutcome {
 }
 
 impl NeuralSession {
+    /// The data of `part` of a batch of training `windows` (`frames` per window, the last
+    /// `predicted` decoded), with its augmentation `picks`.
+    fn part_batch(
+        &self,
+        windows: &[(usize, usize)],
+        part: split::Part,
+        frames: usize,
+        predicted: usize,
+        picks: Vec<i64>,
+    ) -> PartBatch {
+        let batch = self.train.batch_with_still(
+            &windows[part.windows.clone()],
+            part.still,
+            frames,
+            predicted,
+            &self.garment.skin,
+        );
+        PartBatch { part, batch, picks }
+    }
+
     /// The forward and backward passes of one part of a step through `model` (the session's
     /// network, or for a batch in parts a copy with leaves of its own).
     fn descend(
@@ -504,18 +524,11 @@ impl Session for NeuralSession {
         let split = self.config.split_batch && !self.fitting();
         let mut parts = Vec::new();
         for part in split::parts(b, still, augment, split) {
-            let batch = self.train.batch_with_still(
-                &windows[part.windows.clone()],
-                part.still,
-                frames,
-                predicted,
-                &self.garment.skin,
-            );
             let picks = match self.model.has_dynamic_branch() {
                 true => forward::augmentation_picks(&mut self.rng, part.size(), part.augment),
                 false => Vec::new(),
             };
-            parts.push(PartBatch { part, batch, picks });
+            parts.push(self.part_batch(&windows, part, frames, predicted, picks));
         }
         let filters = self.step_filters()?;
         let outcomes = match parts.as_slice() {

@@ -281,14 +281,7 @@ fn a_batch_in_two_halves_has_the_whole_batchs_loss_and_gradient() {
     let windows = s.train.sample_windows(b, true, &mut s.rng);
     let frames = s.batch_frames();
     let part_batch = |s: &super::NeuralSession, part: super::split::Part, picks: Vec<i64>| {
-        let batch = s.train.batch_with_still(
-            &windows[part.windows.clone()],
-            part.still,
-            frames,
-            predicted,
-            &s.garment.skin,
-        );
-        super::PartBatch { part, batch, picks }
+        s.part_batch(&windows, part, frames, predicted, picks)
     };
     let filters = s.step_filters().unwrap();
     assert!(filters.filter.is_some(), "the default filter acts");
