@@ -15,7 +15,6 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use burn::module::Module;
-use burn::optim::GradientsParams;
 use burn::tensor::{Bytes, Device, Tensor, TensorData};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -32,7 +31,6 @@ mod fit;
 mod forward;
 mod split;
 mod step_losses;
-use step_losses::{Descent, StepFilters, StepLosses};
 
 use super::TrainError;
 use super::adam::TrainOptimiser;
@@ -382,96 +380,6 @@ impl NeuralSession {
     }
 }
 
-/// Whether the mirrored copies of the training motions are in the batches at step `steps`
-/// of a run `progress` through its budget: both [`TrainConfig::mirror_from_step`] and
-/// [`TrainConfig::mirror_from_fraction`] reached (an open-ended run reaches any fraction).
-/// A part of a step's batch ([`split::parts`]) with its windows' data and augmentation picks.
-struct PartBatch {
-    part: split::Part,
-    batch: Batch,
-    picks: Vec<i64>,
-}
-
-/// What one part of a step computed ([`NeuralSession::descend`]).
-struct PartOutcome {
-    /// Gradients of the part's weighted losses.
-    grads: GradientsParams,
-    /// The part's weighted physics loss.
-    loss: f64,
-    /// The part's posed frames `[b, K, V, 3]` (detached copy when filtered).
-    x: Tensor<4>,
-    /// Contacts of its loss frames.
-    contacts: Option<Contacts>,
-    /// Friction contacts of its loss frames.
-    friction: Option<FrictionContacts>,
-    /// Windows in the part.
-    size: usize,
-}
-
-impl NeuralSession {
-    /// The data of `part` of a batch of training `windows` (`frames` per window, the last
-    /// `predicted` decoded), with its augmentation `picks`.
-    fn part_batch(
-        &self,
-        windows: &[(usize, usize)],
-        part: split::Part,
-        frames: usize,
-        predicted: usize,
-        picks: Vec<i64>,
-    ) -> PartBatch {
-        let batch = self.train.batch_with_still(
-            &windows[part.windows.clone()],
-            part.still,
-            frames,
-            predicted,
-            &self.garment.skin,
-        );
-        PartBatch { part, batch, picks }
-    }
-
-    /// The forward and backward passes of one part of a step through `model` (the session's
-    /// network, or for a batch in parts a copy with leaves of its own).
-    fn descend(
-        &self,
-        model: &ClothNet,
-        part: &PartBatch,
-        filters: &StepFilters,
-    ) -> Result<PartOutcome, TrainError> {
-        let PartBatch { part, batch, picks } = part;
-        let (x_net, blended) = self.predict(model, batch, part.still, picks);
-        // With the gradient filter, the losses are taken on a detached copy of the posed
-        // frames; their gradient is filtered and handed to the network through a surrogate.
-        let filtered = filters.filter.is_some();
-        let x = match filtered {
-            true => x_net.clone().detach().require_grad(),
-            false => x_net.clone(),
-        };
-        let kept = part.kept();
-        let StepLosses {
-            total,
-            plain,
-            contacts,
-            friction,
-            mut loss,
-        } = self.step_losses(&x_net, &x, filtered, batch, &blended, kept, part.weights)?;
-        let losses = Descent {
-            total,
-            plain,
-            still: part.still,
-            moving_end: kept,
-        };
-        let grads = self.step_gradients(filters, &x_net, &x, losses, batch, &mut loss)?;
-        Ok(PartOutcome {
-            grads: GradientsParams::from_grads(grads, model),
-            loss,
-            x,
-            contacts,
-            friction,
-            size: part.size(),
-        })
-    }
-}
-
 /// What [`NeuralSession::dynamic_losses`] returns (nothing without the dynamics effect).
 #[derive(Default)]
 struct DynamicLosses {
@@ -483,6 +391,9 @@ struct DynamicLosses {
     friction: Option<FrictionContacts>,
 }
 
+/// Whether the mirrored copies of the training motions are in the batches at step `steps`
+/// of a run `progress` through its budget: both [`TrainConfig::mirror_from_step`] and
+/// [`TrainConfig::mirror_from_fraction`] reached (an open-ended run reaches any fraction).
 fn mirrored_joined(config: &TrainConfig, steps: u64, progress: Option<f64>) -> bool {
     steps >= config.mirror_from_step && progress.is_none_or(|p| p >= config.mirror_from_fraction)
 }

@@ -6,7 +6,8 @@
 //! the network's leaves (so their autodiff graphs and locks are separate), run their
 //! forward and backward passes side by side; their gradients are summed. Each part's losses
 //! are weighted by its share of the batch's samples ([`PartWeights`]), so the sum is the
-//! whole batch's gradient up to rounding (tested).
+//! whole batch's gradient up to rounding (tested). [`NeuralSession::descend`] runs one part,
+//! the whole batch included.
 
 use std::ops::Range;
 
@@ -15,7 +16,12 @@ use burn::optim::GradientsParams;
 use burn::tensor::Tensor;
 use neural_cloth_model::ClothNet;
 
-use super::step_losses::PartWeights;
+use neural_cloth_physics::{Contacts, FrictionContacts};
+
+use super::NeuralSession;
+use super::step_losses::{Descent, PartWeights, StepFilters, StepLosses};
+use crate::TrainError;
+use crate::data::Batch;
 
 /// Windows of a batch that one part of a step computes.
 #[derive(Clone, Debug, PartialEq)]
@@ -132,6 +138,93 @@ impl ModuleVisitor for Adder {
             None => other,
         };
         self.sum.register::<D>(param.id, sum);
+    }
+}
+
+/// A part of a step's batch ([`parts`]) with its windows' data and augmentation picks.
+pub(super) struct PartBatch {
+    part: Part,
+    batch: Batch,
+    picks: Vec<i64>,
+}
+
+/// What one part of a step computed ([`NeuralSession::descend`]).
+pub(super) struct PartOutcome {
+    /// Gradients of the part's weighted losses.
+    pub grads: GradientsParams,
+    /// The part's weighted physics loss.
+    pub loss: f64,
+    /// The part's posed frames `[b, K, V, 3]` (detached copy when filtered).
+    pub x: Tensor<4>,
+    /// Contacts of its loss frames.
+    pub contacts: Option<Contacts>,
+    /// Friction contacts of its loss frames.
+    pub friction: Option<FrictionContacts>,
+    /// Windows in the part.
+    pub size: usize,
+}
+
+impl NeuralSession {
+    /// The data of `part` of a batch of training `windows` (`frames` per window, the last
+    /// `predicted` decoded), with its augmentation `picks`.
+    pub(super) fn part_batch(
+        &self,
+        windows: &[(usize, usize)],
+        part: Part,
+        frames: usize,
+        predicted: usize,
+        picks: Vec<i64>,
+    ) -> PartBatch {
+        let batch = self.train.batch_with_still(
+            &windows[part.windows.clone()],
+            part.still,
+            frames,
+            predicted,
+            &self.garment.skin,
+        );
+        PartBatch { part, batch, picks }
+    }
+
+    /// The forward and backward passes of one part of a step through `model` (the session's
+    /// network, or for a batch in parts a copy with leaves of its own).
+    pub(super) fn descend(
+        &self,
+        model: &ClothNet,
+        part: &PartBatch,
+        filters: &StepFilters,
+    ) -> Result<PartOutcome, TrainError> {
+        let PartBatch { part, batch, picks } = part;
+        let (x_net, blended) = self.predict(model, batch, part.still, picks);
+        // With the gradient filter, the losses are taken on a detached copy of the posed
+        // frames; their gradient is filtered and handed to the network through a surrogate.
+        let filtered = filters.filter.is_some();
+        let x = match filtered {
+            true => x_net.clone().detach().require_grad(),
+            false => x_net.clone(),
+        };
+        let kept = part.kept();
+        let StepLosses {
+            total,
+            plain,
+            contacts,
+            friction,
+            mut loss,
+        } = self.step_losses(&x_net, &x, filtered, batch, &blended, kept, part.weights)?;
+        let losses = Descent {
+            total,
+            plain,
+            still: part.still,
+            moving_end: kept,
+        };
+        let grads = self.step_gradients(filters, &x_net, &x, losses, batch, &mut loss)?;
+        Ok(PartOutcome {
+            grads: GradientsParams::from_grads(grads, model),
+            loss,
+            x,
+            contacts,
+            friction,
+            size: part.size(),
+        })
     }
 }
 
