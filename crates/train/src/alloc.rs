@@ -16,8 +16,8 @@
 //! as soon as it is empty, whatever the trim threshold, unless the arena would then keep
 //! less free memory than the pad (128 KiB by default; `heap_trim` in glibc's arena.c). A step
 //! in halves then faulted in fresh pages for its buffers every step. A pad of 64 MiB, the
-//! size of such a heap, keeps them: at batch 16 in halves 1.09-1.12x less time per step and 1 to
-//! 7 % more peak memory; with the batch whole no faster and 15 to 24 % more peak memory (the
+//! size of such a heap, keeps them: at batch 16 in halves each step is 1.09-1.12x faster, for 1
+//! to 7 % more peak memory; with the batch whole no faster and 15 to 24 % more peak memory (the
 //! rayon workers' arenas keep their buffers too; docs/BENCHMARKS.md, 2026-11-29). The main
 //! arena grows by the pad at a time, as address space; only written pages count as memory.
 
