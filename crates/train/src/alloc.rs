@@ -6,10 +6,10 @@
 //! `mmap`s and returns freed memory at the top of its heap to the system, so each step paid
 //! for zeroing tens of megabytes of new pages again (page faults were about a tenth of the
 //! step's profile). [`keep_freed_buffers`] raises the mmap threshold to 32 MiB (the largest
-//! value older glibc allows on 64-bit) and the trim threshold to 1 GiB: freed buffers stay in the heap
-//! and the next step reuses them. Measured on the default scene at batch 16: 10 to 15% less
-//! time per step, about 4% more peak memory (docs/BENCHMARKS.md). The setting is process-wide
-//! and only changes when memory goes back to the system, not how much a step uses.
+//! value older glibc allows on 64-bit) and the trim threshold to 1 GiB: freed buffers stay in
+//! the heap and the next step reuses them. Measured on the default scene at batch 16: 10 to
+//! 15% less time per step, about 4% more peak memory (docs/BENCHMARKS.md). The setting is
+//! process-wide and only changes when memory goes back to the system, not how much a step uses.
 //!
 //! The top pad: threads other than the main one (the second half of a split batch, the rayon
 //! workers) allocate from their own arenas, chains of 64 MiB heaps. glibc unmaps such a heap
@@ -24,7 +24,8 @@
 use std::sync::Once;
 
 /// 32 MiB: the largest `M_MMAP_THRESHOLD` older glibc accepts on 64-bit targets
-/// (`HEAP_MAX_SIZE / 2`); glibc 2.36 accepts larger values too (not measured).
+/// (`HEAP_MAX_SIZE / 2`). glibc 2.36's `mallopt` also accepts larger values (checked); what a
+/// larger threshold would do to a step is not measured.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 const MMAP_THRESHOLD_BYTES: libc::c_int = 32 << 20;
 /// Free memory at the top of the heap kept before glibc trims it.
