@@ -6,6 +6,7 @@ use std::sync::OnceLock;
 
 use neural_cloth::geometry::rotation::angle_between;
 use neural_cloth::geometry::{KdTree, Quat, Topology, TriMesh, Vec3};
+use neural_cloth::scene::config::MotionSource;
 use neural_cloth::scene::motion::mirror_map;
 use neural_cloth::scene::procedural::body::BodySdf;
 use neural_cloth::scene::procedural::{self, GarmentKind, MotionKind};
@@ -531,6 +532,38 @@ fn twirl_turns_both_ways_faster_than_the_spin_and_repeats_smoothly() {
     let later = procedural::motions::pose_at(MotionKind::Twirl, 7.6 - 1e-4, 7.6);
     assert!(end.rotations[1..].iter().all(|q| q.angle() < 1e-3));
     assert!(angle_between(&end.rotations[0], &later.rotations[0]) < 1e-4);
+}
+
+#[test]
+fn turning_scene_is_the_default_scene_with_a_slower_training_spin() {
+    let default =
+        SceneConfig::from_toml_str(&std::fs::read_to_string("assets/default-scene.toml").unwrap())
+            .unwrap();
+    let text = std::fs::read_to_string("assets/turning-scene.toml").unwrap();
+    let config = SceneConfig::from_toml_str(&text).unwrap();
+    assert_eq!(config.name, "turning");
+    // Everything but the name and the one added motion is the default scene's.
+    let mut without_spin = config.clone();
+    without_spin.name = default.name.clone();
+    without_spin
+        .motions
+        .retain(|m| !matches!(m, MotionSource::Builtin { name: Some(n), .. } if n == "spin075"));
+    assert_eq!(without_spin, default);
+    let scene = procedural::build_builtin(&config).unwrap();
+    let find = |name: &str| scene.motions.iter().find(|(m, _)| m.name == name).unwrap();
+    let (training_spin, training_split) = find("spin075");
+    let (held_out_spin, held_out_split) = find("spin");
+    assert_eq!(*training_split, Split::Train);
+    assert_eq!(*held_out_split, Split::Test);
+    // At full speed the training spin turns at 0.75 of the held-out spin's rate.
+    let peak_rate = |m: &neural_cloth::scene::Motion| {
+        m.frames
+            .windows(2)
+            .map(|w| angle_between(&w[0].rotations[0], &w[1].rotations[0]))
+            .fold(0.0f32, f32::max)
+    };
+    let ratio = peak_rate(training_spin) / peak_rate(held_out_spin);
+    assert!((ratio - 0.75).abs() < 0.03, "{ratio}");
 }
 
 #[test]
