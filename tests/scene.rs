@@ -435,22 +435,24 @@ fn every_motion_is_finite_at_any_rate() {
     assert!(procedural::motion(MotionKind::Walk, 30.0, f32::NAN).is_err());
 }
 
+/// The fastest turn of a motion's root between two frames, rad/s.
+fn peak_root_turn_rate(m: &neural_cloth::scene::Motion) -> f32 {
+    m.frames
+        .windows(2)
+        .map(|w| angle_between(&w[0].rotations[0], &w[1].rotations[0]) * m.fps)
+        .fold(0.0f32, f32::max)
+}
+
 #[test]
 fn a_spin_at_half_speed_turns_once_a_second_and_bad_speeds_are_refused() {
-    let peak_rate = |m: &neural_cloth::scene::Motion| {
-        m.frames
-            .windows(2)
-            .map(|w| angle_between(&w[0].rotations[0], &w[1].rotations[0]) * m.fps)
-            .fold(0.0f32, f32::max)
-    };
     let slow = procedural::motion_at_speed(MotionKind::Spin, 240.0, 6.0, 0.5).unwrap();
     let full = procedural::motion(MotionKind::Spin, 240.0, 6.0).unwrap();
     assert_eq!(slow.frames.len(), full.frames.len());
     let target = 2.0 * std::f32::consts::PI;
     assert!(
-        (0.95 * target..=1.05 * target).contains(&peak_rate(&slow)),
+        (0.95 * target..=1.05 * target).contains(&peak_root_turn_rate(&slow)),
         "{} rad/s",
-        peak_rate(&slow)
+        peak_root_turn_rate(&slow)
     );
     for bad in [0.0, -1.0, f32::NAN, 11.0] {
         assert!(procedural::motion_at_speed(MotionKind::Walk, 30.0, 1.0, bad).is_err());
@@ -556,13 +558,7 @@ fn turning_scene_is_the_default_scene_with_a_slower_training_spin() {
     assert_eq!(*training_split, Split::Train);
     assert_eq!(*held_out_split, Split::Test);
     // At full speed the training spin turns at 0.75 of the held-out spin's rate.
-    let peak_rate = |m: &neural_cloth::scene::Motion| {
-        m.frames
-            .windows(2)
-            .map(|w| angle_between(&w[0].rotations[0], &w[1].rotations[0]))
-            .fold(0.0f32, f32::max)
-    };
-    let ratio = peak_rate(training_spin) / peak_rate(held_out_spin);
+    let ratio = peak_root_turn_rate(training_spin) / peak_root_turn_rate(held_out_spin);
     assert!((ratio - 0.75).abs() < 0.03, "{ratio}");
 }
 
