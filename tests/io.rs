@@ -10,7 +10,8 @@
 //! fitting on built-in and MakeHuman garments, and the `fit` command (`io/fit.rs`); garments
 //! made for another arm pose re-posed (`io/sleeves.rs`). Characters
 //! built partly of rigid meshes parented to bones (`io/rigid_parts.rs`), and only of them
-//! (`io/rigid_only.rs`).
+//! (`io/rigid_only.rs`). A scene's mirrored motions, built in and from files
+//! (`io/mirrored_motions.rs`).
 //!
 //! Layout: this file holds the shared helpers; the tests live in `io/*.rs` (one test binary).
 
@@ -22,6 +23,8 @@ mod config_mutation;
 mod fit;
 #[path = "io/garments.rs"]
 mod garments;
+#[path = "io/mirrored_motions.rs"]
+mod mirrored_motions;
 #[path = "io/motions.rs"]
 mod motions;
 #[path = "io/mutation.rs"]

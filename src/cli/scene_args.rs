@@ -191,6 +191,7 @@ fn motions_of_folder(folder: &Path) -> anyhow::Result<Vec<MotionSource>> {
             split: folder_split(k, files.len()),
             name: None,
             joint_map: None,
+            mirrored: false,
         })
         .collect())
 }
@@ -235,6 +236,7 @@ mod tests {
             split: neural_cloth::scene::Split::Train,
             name: None,
             joint_map: None,
+            mirrored: false,
         }];
         set_up_where_auto(&mut config, UpAxis::Z);
         assert!(matches!(

@@ -404,6 +404,7 @@ mod tests {
             split: Split::Validation,
             name: None,
             joint_map: Some(dir.path().join("maps/walk.toml")),
+            mirrored: false,
         });
         p.scene.fabric.density_kg_per_m2 = 0.3;
         p.scene.training_fps = 60.0;

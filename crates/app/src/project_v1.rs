@@ -87,6 +87,7 @@ pub fn convert(mut table: toml::Table) -> Result<ProjectFile, InvalidProject> {
         split: Split::Train,
         name: None,
         joint_map: None,
+        mirrored: false,
     };
     if let Some(avatar) = &old.scene.avatar {
         scene.name = avatar
@@ -202,6 +203,7 @@ w = 1.5
                 split: Split::Train,
                 name: None,
                 joint_map: None,
+                mirrored: false,
             })
         );
         assert_eq!(s.fabric.density_kg_per_m2, 0.41);

@@ -56,6 +56,7 @@ fn motion_file(path: PathBuf, up: UpAxis, joint_map: Option<PathBuf>) -> MotionS
         split: Split::Train,
         name: None,
         joint_map,
+        mirrored: false,
     }
 }
 

@@ -179,6 +179,7 @@ impl<'a> SceneLoader<'a> {
                 speed,
                 fps: motion_fps,
                 name,
+                mirrored,
                 ..
             } => {
                 if let AvatarSource::File { path, .. } = &self.config.avatar {
@@ -199,6 +200,9 @@ impl<'a> SceneLoader<'a> {
                     name.as_deref(),
                 )
                 .map_err(|e| self.scene_error(e))?;
+                if *mirrored {
+                    return Ok(vec![m.mirrored_for_scene(&avatar.skeleton, name.is_some())]);
+                }
                 Ok(vec![m])
             }
             MotionSource::File {
@@ -207,6 +211,7 @@ impl<'a> SceneLoader<'a> {
                 up,
                 name,
                 joint_map,
+                mirrored,
                 ..
             } => {
                 let file = self.resolve(path);
@@ -221,7 +226,14 @@ impl<'a> SceneLoader<'a> {
                     only: name.as_deref(),
                     joint_map: joint_map.as_ref(),
                 };
-                load_motions(&file, avatar, &how, warnings)
+                let motions = load_motions(&file, avatar, &how, warnings)?;
+                if !*mirrored {
+                    return Ok(motions);
+                }
+                Ok(motions
+                    .iter()
+                    .map(|m| m.mirrored_for_scene(&avatar.skeleton, false))
+                    .collect())
             }
         }
     }

@@ -214,6 +214,7 @@ impl SceneConfig {
                 fps: None,
                 split: kind.default_split(),
                 name: None,
+                mirrored: false,
             })
             .collect();
         Self {

@@ -222,6 +222,26 @@ impl Motion {
 /// What [`Motion::mirrored`] appends to the name of the motion it mirrors.
 pub const MIRRORED_NAME_SUFFIX: &str = " (mirrored)";
 
+/// What a scene's `mirrored = true` appends to the name of the motion it mirrors; not
+/// [`MIRRORED_NAME_SUFFIX`], so that a scene's mirror image and the trainer's mirrored copy of
+/// the original never share a name.
+pub const SCENE_MIRRORED_NAME_SUFFIX: &str = ", mirrored";
+
+impl Motion {
+    /// The mirror image a scene's `mirrored = true` asks for: [`Motion::mirrored`], keeping
+    /// this motion's name when `keep_name` (the scene named it) and otherwise naming it with
+    /// [`SCENE_MIRRORED_NAME_SUFFIX`].
+    pub fn mirrored_for_scene(&self, skeleton: &Skeleton, keep_name: bool) -> Self {
+        let mut m = self.mirrored(skeleton);
+        m.name = if keep_name {
+            self.name.clone()
+        } else {
+            format!("{}{SCENE_MIRRORED_NAME_SUFFIX}", self.name)
+        };
+        m
+    }
+}
+
 /// For each joint, the index of its left/right counterpart (itself when it has none).
 pub fn mirror_map(names: &[String]) -> Vec<usize> {
     names

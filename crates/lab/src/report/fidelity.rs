@@ -164,6 +164,7 @@ pub fn fidelity_scene(
         fps: None,
         split,
         name: None,
+        mirrored: false,
     };
     let config = SceneConfig {
         name: "fidelity skirt".into(),

@@ -117,8 +117,11 @@ pub enum MotionSource {
         fps: Option<f32>,
         /// Data split, default "train".
         split: Split,
-        /// Display name; default: the kind's name.
+        /// Display name; default: the kind's name (with ", mirrored" when `mirrored`).
         name: Option<String>,
+        /// Play the motion's left/right mirror image (a spin turns the other way), default
+        /// false.
+        mirrored: bool,
     },
     /// A motion file (BVH, or the animations of a glTF/GLB file): `path`, optional `units`,
     /// `up`, `split`, `name`, `joint_map`.
@@ -137,6 +140,9 @@ pub enum MotionSource {
         /// Joint map file (TOML, `[joints] AvatarJoint = "MotionJoint"`) overriding the
         /// automatic joint mapping, relative to the config file's folder; default none.
         joint_map: Option<PathBuf>,
+        /// Play each animation's left/right mirror image (named with ", mirrored"), default
+        /// false.
+        mirrored: bool,
     },
 }
 
@@ -168,6 +174,8 @@ struct RawSource {
     name: Option<String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     joint_map: Option<PathBuf>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    mirrored: Option<bool>,
 }
 
 impl RawSource {
@@ -195,6 +203,7 @@ impl RawSource {
             ("split", self.split.is_some()),
             ("name", self.name.is_some()),
             ("joint_map", self.joint_map.is_some()),
+            ("mirrored", self.mirrored.is_some()),
         ];
         let kind = if self.builtin.is_some() {
             "built-in"
@@ -334,7 +343,7 @@ impl TryFrom<RawSource> for MotionSource {
                 raw.check(
                     "motion",
                     expected,
-                    &["duration_secs", "speed", "fps", "split", "name"],
+                    &["duration_secs", "speed", "fps", "split", "name", "mirrored"],
                 )?;
                 let builtin =
                     MotionKind::from_name(&b).ok_or_else(|| unknown("motion", &b, expected))?;
@@ -346,13 +355,14 @@ impl TryFrom<RawSource> for MotionSource {
                     fps: raw.fps,
                     split,
                     name: raw.name,
+                    mirrored: raw.mirrored.unwrap_or(false),
                 })
             }
             (_, path) => {
                 raw.check(
                     "motion",
                     expected,
-                    &["units", "up", "split", "name", "joint_map"],
+                    &["units", "up", "split", "name", "joint_map", "mirrored"],
                 )?;
                 Ok(Self::File {
                     path: path.unwrap_or_default(),
@@ -361,6 +371,7 @@ impl TryFrom<RawSource> for MotionSource {
                     split,
                     name: raw.name,
                     joint_map: raw.joint_map,
+                    mirrored: raw.mirrored.unwrap_or(false),
                 })
             }
         }
@@ -377,6 +388,7 @@ impl From<MotionSource> for RawSource {
                 fps,
                 split,
                 name,
+                mirrored,
             } => Self {
                 builtin: Some(builtin.name().into()),
                 duration_secs: Some(duration_secs),
@@ -384,6 +396,7 @@ impl From<MotionSource> for RawSource {
                 fps,
                 split: Some(split),
                 name,
+                mirrored: mirrored.then_some(true),
                 ..Self::default()
             },
             MotionSource::File {
@@ -393,6 +406,7 @@ impl From<MotionSource> for RawSource {
                 split,
                 name,
                 joint_map,
+                mirrored,
             } => Self {
                 path: Some(path),
                 units,
@@ -400,6 +414,7 @@ impl From<MotionSource> for RawSource {
                 split: Some(split),
                 name,
                 joint_map,
+                mirrored: mirrored.then_some(true),
                 ..Self::default()
             },
         }

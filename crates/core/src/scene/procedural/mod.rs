@@ -92,6 +92,7 @@ pub fn build_builtin(config: &SceneConfig) -> Result<Scene, ConfigError> {
             fps,
             split,
             name,
+            mirrored,
         } = source
         else {
             return Err(ConfigError::NotBuiltin {
@@ -103,15 +104,20 @@ pub fn build_builtin(config: &SceneConfig) -> Result<Scene, ConfigError> {
             fps.unwrap_or(config.training_fps),
             (*duration_secs, *speed),
             *split,
-            name.clone(),
+            (name.clone(), *mirrored),
         ));
     }
     let avatar = mannequin()?;
     let garment = builtin_garment(&avatar, *builtin, *resolution, *smoothing_passes)?;
     let motions: Vec<(Motion, Split)> = specs
         .into_iter()
-        .map(|(kind, fps, (duration, speed), split, name)| {
+        .map(|(kind, fps, (duration, speed), split, (name, mirrored))| {
             let motion = builtin_motion(kind, fps, duration, speed, name.as_deref())?;
+            let motion = if mirrored {
+                motion.mirrored_for_scene(&avatar.skeleton, name.is_some())
+            } else {
+                motion
+            };
             Ok((motion, split))
         })
         .collect::<Result<_, SceneError>>()?;
