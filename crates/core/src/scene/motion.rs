@@ -217,17 +217,7 @@ impl Motion {
             frames,
         }
     }
-}
 
-/// What [`Motion::mirrored`] appends to the name of the motion it mirrors.
-pub const MIRRORED_NAME_SUFFIX: &str = " (mirrored)";
-
-/// What a scene's `mirrored = true` appends to the name of the motion it mirrors; not
-/// [`MIRRORED_NAME_SUFFIX`], so that a scene's mirror image and the trainer's mirrored copy of
-/// the original never share a name.
-pub const SCENE_MIRRORED_NAME_SUFFIX: &str = ", mirrored";
-
-impl Motion {
     /// The mirror image a scene's `mirrored = true` asks for: [`Motion::mirrored`], keeping
     /// this motion's name when `keep_name` (the scene named it) and otherwise naming it with
     /// [`SCENE_MIRRORED_NAME_SUFFIX`].
@@ -241,6 +231,14 @@ impl Motion {
         m
     }
 }
+
+/// What [`Motion::mirrored`] appends to the name of the motion it mirrors.
+pub const MIRRORED_NAME_SUFFIX: &str = " (mirrored)";
+
+/// What a scene's `mirrored = true` appends to the name of the motion it mirrors; not
+/// [`MIRRORED_NAME_SUFFIX`], so that a scene's mirror image and the trainer's mirrored copy of
+/// the original never share a name.
+pub const SCENE_MIRRORED_NAME_SUFFIX: &str = ", mirrored";
 
 /// For each joint, the index of its left/right counterpart (itself when it has none).
 pub fn mirror_map(names: &[String]) -> Vec<usize> {
