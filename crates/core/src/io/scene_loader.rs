@@ -198,11 +198,9 @@ impl<'a> SceneLoader<'a> {
                     *duration_secs,
                     *speed,
                     name.as_deref(),
+                    mirrored.then_some(&avatar.skeleton),
                 )
                 .map_err(|e| self.scene_error(e))?;
-                if *mirrored {
-                    return Ok(vec![m.mirrored_for_scene(&avatar.skeleton, name.is_some())]);
-                }
                 Ok(vec![m])
             }
             MotionSource::File {

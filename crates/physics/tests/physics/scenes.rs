@@ -101,7 +101,7 @@ fn reference_simulator_spins_a_skirt_open() {
     };
     let device = Device::flex();
     let fps = 30.0;
-    let spin = builtin_motion(MotionKind::Spin, fps, 1.5, 1.0, None).unwrap();
+    let spin = builtin_motion(MotionKind::Spin, fps, 1.5, 1.0, None, None).unwrap();
     let still = Motion::still("still", spin.frames[0].clone(), fps, spin.frames.len());
     let options = SimOptions {
         iterations_per_step: 20,

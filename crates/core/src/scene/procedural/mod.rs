@@ -20,7 +20,7 @@ pub use mannequin::mannequin;
 pub use motions::{MotionKind, motion, motion_at_speed};
 
 use super::config::{AvatarSource, ConfigError, GarmentSource, MotionSource, SceneConfig, Split};
-use super::{Avatar, Garment, GarmentOptions, Motion, Scene, SceneError};
+use super::{Avatar, Garment, GarmentOptions, Motion, Scene, SceneError, Skeleton};
 
 /// The default scene: mannequin, t-shirt (about 10K DoF) and every procedural motion
 /// (idle, walk, run, jump, twirl for training, turn for validation, spin for testing).
@@ -34,19 +34,25 @@ pub fn default_scene() -> Result<Scene, SceneError> {
     })
 }
 
-/// A built-in motion for the mannequin, named `name` or after its kind.
+/// A built-in motion for the mannequin, named `name` or after its kind; with `mirror_on` (the
+/// mannequin's skeleton) its left/right mirror image, as a scene's `mirrored = true` asks
+/// ([`Motion::mirrored_for_scene`]).
 pub fn builtin_motion(
     kind: MotionKind,
     fps: f32,
     duration_secs: f32,
     speed: f32,
     name: Option<&str>,
+    mirror_on: Option<&Skeleton>,
 ) -> Result<Motion, SceneError> {
     let mut m = motions::motion_at_speed(kind, fps, duration_secs, speed)?;
     if let Some(name) = name {
         m.name = name.to_string();
     }
-    Ok(m)
+    Ok(match mirror_on {
+        Some(skeleton) => m.mirrored_for_scene(skeleton, name.is_some()),
+        None => m,
+    })
 }
 
 /// A built-in garment on the mannequin `avatar`, `smoothing_passes` overriding the kind's
@@ -112,12 +118,8 @@ pub fn build_builtin(config: &SceneConfig) -> Result<Scene, ConfigError> {
     let motions: Vec<(Motion, Split)> = specs
         .into_iter()
         .map(|(kind, fps, (duration, speed), split, (name, mirrored))| {
-            let motion = builtin_motion(kind, fps, duration, speed, name.as_deref())?;
-            let motion = if mirrored {
-                motion.mirrored_for_scene(&avatar.skeleton, name.is_some())
-            } else {
-                motion
-            };
+            let mirror_on = mirrored.then_some(&avatar.skeleton);
+            let motion = builtin_motion(kind, fps, duration, speed, name.as_deref(), mirror_on)?;
             Ok((motion, split))
         })
         .collect::<Result<_, SceneError>>()?;
