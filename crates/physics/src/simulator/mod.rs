@@ -152,6 +152,10 @@ pub struct Stepper {
     contact_k: f64,
     /// Vertices closer than this to the body get `contact_k` in the metric, metres.
     contact_range_m: f64,
+    /// The last metric with contact stiffness and the vertices it was built for: the same
+    /// vertices give the same matrix, so its factor is reused (within a step and across
+    /// steps) instead of computed again.
+    contact_metric: Option<(Vec<usize>, Arc<EnvelopeCholesky>)>,
     x_t1: Vec<f64>,
     x_t2: Vec<f64>,
     /// The skinned template of the previous step, flattened (see [`StepInput::skinned`]).
@@ -236,6 +240,7 @@ impl Stepper {
             contact_k,
             contact_range_m: 2.0 * f64::from(fabric.collision_threshold_m)
                 + options.max_step_edges * rest.mean_edge_m,
+            contact_metric: None,
             x_t1: x0.clone(),
             x_t2: x0,
             skinned_t1: None,
@@ -302,6 +307,24 @@ impl Stepper {
             }
         }
         Ok(())
+    }
+
+    /// The factor of `M/Δt² + K + pins` plus the contact stiffness at the vertices `near`,
+    /// computed only when `near` differs from the last call's.
+    fn metric_with_contacts(
+        &mut self,
+        near: Vec<usize>,
+    ) -> Result<Arc<EnvelopeCholesky>, PhysicsError> {
+        if let Some((set, metric)) = &self.contact_metric
+            && *set == near
+        {
+            return Ok(metric.clone());
+        }
+        let mut t = self.base_triplets.clone();
+        t.extend(near.iter().map(|&i| (i, i, self.contact_k)));
+        let metric = Arc::new(EnvelopeCholesky::factor(self.metric.len(), &t)?);
+        self.contact_metric = Some((near, metric.clone()));
+        Ok(metric)
     }
 
     /// The terms the stepper evaluates.
@@ -392,9 +415,7 @@ impl Stepper {
             let metric = if near.is_empty() || self.contact_k == 0.0 {
                 self.metric.clone()
             } else {
-                let mut t = self.base_triplets.clone();
-                t.extend(near.iter().map(|&i| (i, i, self.contact_k)));
-                Arc::new(EnvelopeCholesky::factor(v, &t)?)
+                self.metric_with_contacts(near)?
             };
             let apply = |r: &[f64]| -> Vec<f64> {
                 let mut columns: Vec<[f64; 3]> =
