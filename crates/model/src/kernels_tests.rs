@@ -167,3 +167,41 @@ fn large_and_tiny_weights_survive_f16_and_bad_sizes_do_not_overrun() {
     m.accumulate(&[1.0], 3, &mut y);
     assert!((y[0] - 3e-7).abs() < 3e-10);
 }
+
+/// The patched burn-flex computes products of few rows with a transposed right-hand side
+/// (a small batch's `dG · Wᵀ`) column-major and transposes them back: every row count around
+/// its limit (64), both operand layouts, against a product in f64.
+#[test]
+fn products_of_few_rows_with_a_transposed_rhs_match_a_reference() {
+    use burn::tensor::{Tensor, TensorData};
+    let device = burn::tensor::Device::flex();
+    let mut s = 11;
+    for (m, k, n) in [
+        (1, 7, 5),
+        (3, 33, 17),
+        (8, 96, 40),
+        (64, 40, 70),
+        (65, 40, 70),
+    ] {
+        let a: Vec<f32> = (0..m * k).map(|_| lcg(&mut s)).collect();
+        // W is stored [n, k] and used transposed: the right-hand side [k, n] has unit stride
+        // along k.
+        let w: Vec<f32> = (0..n * k).map(|_| lcg(&mut s)).collect();
+        let lhs = Tensor::<2>::from_data(TensorData::new(a.clone(), [m, k]), &device);
+        let rhs = Tensor::<2>::from_data(TensorData::new(w.clone(), [n, k]), &device);
+        let out: Vec<f32> = lhs.matmul(rhs.transpose()).into_data().to_vec().unwrap();
+        assert_eq!(out.len(), m * n);
+        for i in 0..m {
+            for j in 0..n {
+                let want: f64 = (0..k)
+                    .map(|l| f64::from(a[i * k + l]) * f64::from(w[j * k + l]))
+                    .sum();
+                let got = f64::from(out[i * n + j]);
+                assert!(
+                    (got - want).abs() <= 1e-5 * (1.0 + want.abs()),
+                    "[{m}, {k}] x [{k}, {n}] at ({i}, {j}): {got} against {want}"
+                );
+            }
+        }
+    }
+}
