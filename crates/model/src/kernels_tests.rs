@@ -189,7 +189,11 @@ fn products_of_few_rows_with_a_transposed_rhs_match_a_reference() {
         let w: Vec<f32> = (0..n * k).map(|_| lcg(&mut s)).collect();
         let lhs = Tensor::<2>::from_data(TensorData::new(a.clone(), [m, k]), &device);
         let rhs = Tensor::<2>::from_data(TensorData::new(w.clone(), [n, k]), &device);
-        let out: Vec<f32> = lhs.matmul(rhs.transpose()).into_data().to_vec().unwrap();
+        let out: Vec<f32> = lhs
+            .matmul(rhs.transpose())
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap();
         assert_eq!(out.len(), m * n);
         for i in 0..m {
             for j in 0..n {
