@@ -1353,6 +1353,29 @@ pinning = true
             "{events:?}"
         );
         assert_eq!(first.motions[0].measures, second.motions[0].measures);
+        // A second run of the same scene beside it takes the reference from the first run's
+        // cache (the same file, bit for bit) and simulates nothing.
+        let sibling = dir.path().join("sibling");
+        train_tiny(&sibling);
+        let sibling_trained = load_trained(&sibling).unwrap();
+        let mut phases = Vec::new();
+        let adopted = compare(&sibling_trained, Some("walk"), &quick(), &mut |p| {
+            phases.push(p.phase);
+            true
+        })
+        .unwrap();
+        assert!(adopted.motions[0].reference.cached);
+        assert!(
+            !phases.contains(&ComparePhase::Simulating)
+                && !phases.contains(&ComparePhase::SimulatingStatic),
+            "{phases:?}"
+        );
+        let copied = &adopted.motions[0].reference.path;
+        assert!(copied.starts_with(reference_dir(&sibling)), "{copied:?}");
+        assert_eq!(
+            std::fs::read(copied).unwrap(),
+            std::fs::read(&reference.path).unwrap()
+        );
         // Other settings simulate again.
         let other = CompareOptions {
             iterations: 9,

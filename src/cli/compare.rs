@@ -31,7 +31,8 @@ pub struct CompareArgs {
     /// (0..=5).
     #[arg(long, default_value_t = 3.0)]
     pub settle: f32,
-    /// Simulate again even when RUN/reference/ holds this reference.
+    /// Simulate again even when RUN/reference/ (or another run in RUN's folder) holds this
+    /// reference.
     #[arg(long)]
     pub no_cache: bool,
     /// Skip the GRU state's drift (the network replayed one training window before each

@@ -258,8 +258,10 @@ fn the_warm_start_fits_our_simulation_for_its_steps_and_compare_reads_it() {
         "the fit changed the first update"
     );
     assert!(!session.fitting(), "two steps done: the paper's loss alone");
-    // A cancelled preparation ends with an error.
-    let cancelled = prepare_with(setup(&dir.path().join("d"), short), &mut |_| false);
+    // A cancelled preparation ends with an error (in a folder of its own: beside the runs
+    // above it would take their simulations and have nothing to cancel).
+    let alone = tempfile::tempdir().unwrap();
+    let cancelled = prepare_with(setup(&alone.path().join("d"), short), &mut |_| false);
     assert!(cancelled.is_err());
 }
 

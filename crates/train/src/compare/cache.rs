@@ -12,7 +12,9 @@
 //! jitter (when set), the garment (template,
 //! faces, skin weights, pinned and collision-exempt vertices), the avatar, the fabric and the
 //! effects. A changed input gives another file; a file whose frame or vertex count does not
-//! match is simulated again. Files are written atomically (temporary + rename).
+//! match is simulated again. Files are written atomically (temporary + rename). A file not in
+//! the run's cache but of the same name in another run beside it (`RUN/../*/reference/`) is
+//! the same simulation and is copied over instead of simulated again.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -212,6 +214,47 @@ fn read_cached(path: &Path, frames: usize, vertices: usize) -> Option<Vec<Vec<Ve
     fits.then_some(cache.frames)
 }
 
+/// The frames of `file` (a cache file of `run_root`, named `stem` + suffix) from another run
+/// in the same folder as `run_root` that holds a file of that name, copied into this run's
+/// cache with its key record. The name carries the key of everything the simulation depends
+/// on, so a file of the same name is the same simulation: comparing a second run of a scene
+/// simulates nothing again. `None` when no sibling run has it.
+fn adopt_from_sibling(
+    run_root: &Path,
+    file: &Path,
+    stem: &str,
+    frames: usize,
+    vertices: usize,
+) -> Result<Option<Vec<Vec<Vec3>>>, TrainError> {
+    let (Some(parent), Some(name)) = (run_root.parent(), file.file_name()) else {
+        return Ok(None);
+    };
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return Ok(None);
+    };
+    let own = run_root.file_name();
+    for entry in entries.flatten() {
+        if Some(entry.file_name().as_os_str()) == own {
+            continue;
+        }
+        let theirs = reference_dir(&entry.path());
+        let source = theirs.join(name);
+        let Some(found) = read_cached(&source, frames, vertices) else {
+            continue;
+        };
+        let bytes = std::fs::read(&source).map_err(|e| TrainError::io(e, &source))?;
+        let dir = reference_dir(run_root);
+        std::fs::create_dir_all(&dir).map_err(|e| TrainError::io(e, &dir))?;
+        write_atomic(file, &bytes)?;
+        let record = format!("{stem}.json");
+        if let Ok(json) = std::fs::read(theirs.join(&record)) {
+            write_atomic(&dir.join(&record), &json)?;
+        }
+        return Ok(Some(found));
+    }
+    Ok(None)
+}
+
 /// Writes `frames` to `path` atomically.
 fn write_frames(path: &Path, frames: &[Vec<Vec3>]) -> Result<(), TrainError> {
     let vertices = frames.first().map_or(0, Vec::len);
@@ -355,6 +398,11 @@ fn cached_or_simulated(
     let (frames, vertices) = (motion.frames.len(), scene.garment.vertex_count());
     if options.use_cache
         && let Some(cached) = read_cached(&file, frames, vertices)
+    {
+        return Ok((cached, path, true));
+    }
+    if options.use_cache
+        && let Some(cached) = adopt_from_sibling(run_root, &file, &stem, frames, vertices)?
     {
         return Ok((cached, path, true));
     }
